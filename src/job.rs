@@ -1,0 +1,435 @@
+//! One job from validated document to result: the pipeline of the projection method
+//! (build → transform → threshold → solve → metrics) and the assembly of the result.
+//! Kinds and methods plug in by producing a [`Solution`].
+
+use crate::compress::{self, Kept, MagnitudePicture};
+use crate::field::Field;
+use crate::metrics;
+use crate::progress::{Cancelled, Phase, Progress};
+use crate::projection::{self, flatland, Discretization, Layout, System};
+use crate::result::*;
+use crate::scene::{BasisKind, Job, Keep, Method, Reference, Rgb, SceneKind};
+use crate::solve::{self, SolveError, Solved};
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// Everything a finished job yields apart from the images, which [`crate`] users render from
+/// the fields.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub result: JobResult,
+    /// B over each surface.
+    pub fields: Vec<Field>,
+    /// The kernel matrix magnitudes in the chosen basis (projection method).
+    pub picture: Option<MagnitudePicture>,
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum JobError {
+    #[error("cancelled")]
+    Cancelled,
+    #[error("{0}")]
+    Diverged(String),
+    #[error("{0}")]
+    Unsupported(String),
+}
+
+impl From<Cancelled> for JobError {
+    fn from(_: Cancelled) -> Self {
+        JobError::Cancelled
+    }
+}
+
+impl From<SolveError> for JobError {
+    fn from(e: SolveError) -> Self {
+        match e {
+            SolveError::Cancelled => JobError::Cancelled,
+            e => JobError::Diverged(e.to_string()),
+        }
+    }
+}
+
+/// What a method produces; the result is assembled from it.
+#[derive(Debug, Clone)]
+pub struct Solution {
+    pub fields: Vec<Field>,
+    pub emission: Vec<Field>,
+    pub irradiance: Vec<Field>,
+    pub basis_size: usize,
+    pub matrix_entries: usize,
+    pub kept_entries: usize,
+    pub cut: f64,
+    pub sorted: Vec<f64>,
+    pub picture: Option<MagnitudePicture>,
+    pub solved: Solved,
+    /// Eq. (5) and the surface pairs it left out.
+    pub kernel_error: Option<f64>,
+    pub left_out: Vec<(usize, usize)>,
+    pub hierarchy: Option<HierarchyStats>,
+    pub timings: BTreeMap<String, f64>,
+    /// Σ K_ij² of the kept entries per (row surface, column surface), `S × S`, for eq. (5).
+    pub kept_squares: Vec<f64>,
+}
+
+/// Runs a job.
+pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
+    let start = Instant::now();
+    let mut sol = solve_job(job, job.solver.order, job.solver.resolution, job.solver.keep, progress)?;
+    let names = job.surface_names();
+    let measure = surface_measures(job);
+    let t = Instant::now();
+    let (radiosity_error, reference) = match job.output.reference {
+        None => (None, None),
+        Some(Reference::Exact) => {
+            let SceneKind::Fredholm(f) = &job.scene.kind else {
+                unreachable!("validated: exact needs fredholm")
+            };
+            let exact = f.exact.as_ref().expect("validated: exact present");
+            let [a, b] = f.domain;
+            let (d, n) = metrics::l2_against(&sol.fields[0], b - a, |s| exact.eval(a + s * (b - a), 0.0));
+            (Some(d / n), Some("exact".to_string()))
+        }
+        Some(Reference::Finer { order, resolution }) => {
+            progress.report(Phase::Reference, 0.0);
+            let quiet = Relabel { inner: progress, phase: Phase::Reference };
+            let reference = solve_job(job, order, resolution, Keep::All, &quiet)?;
+            let (mut d, mut n) = (0.0, 0.0);
+            for (i, f) in sol.fields.iter().enumerate() {
+                let (di, ni) = metrics::l2_difference(f, &reference.fields[i], measure[i]);
+                d += di;
+                n += ni;
+            }
+            (Some(d / n), Some(format!("order {order}, resolution {resolution}")))
+        }
+    };
+    sol.timings.insert("reference".into(), ms(t));
+    progress.report(Phase::Metrics, 0.0);
+    let rho = reflectances(job);
+    let energy = metrics::energy(&sol.emission, &sol.irradiance, &rho, &measure);
+    let surfaces = names
+        .iter()
+        .zip(&sol.fields)
+        .map(|(name, f)| SurfaceResult {
+            name: name.clone(),
+            mean: f.mean(),
+            cells: f.cell_means(job.output.grid),
+        })
+        .collect();
+    let (sorted_ranks, sorted_magnitudes) = compress::sample_ranks(&sol.sorted, job.output.coefficients);
+    sol.timings.insert("total".into(), ms(start));
+    let result = JobResult {
+        scene: job.scene.name.clone(),
+        kind: job.scene.kind.name().into(),
+        solver: echo(job),
+        surfaces,
+        coefficients: Coefficients {
+            basis_size: sol.basis_size,
+            matrix_entries: sol.matrix_entries,
+            kept_entries: sol.kept_entries,
+            sparsity_ratio: 1.0 - sol.kept_entries as f64 / sol.matrix_entries.max(1) as f64,
+            cut: sol.cut,
+            sorted_magnitudes,
+            sorted_ranks,
+        },
+        metrics: Metrics {
+            kernel_relative_error: sol.kernel_error,
+            kernel_pairs_left_out: sol
+                .left_out
+                .iter()
+                .map(|&(i, j)| [names[i].clone(), names[j].clone()])
+                .collect(),
+            radiosity_relative_error: radiosity_error,
+            reference,
+            iterations: sol.solved.iterations,
+            converged: sol.solved.converged,
+            final_residual: sol.solved.residual,
+            residual_history: sol.solved.history.clone(),
+            energy,
+        },
+        timings_ms: sol.timings.clone(),
+        hierarchical: sol.hierarchy.clone(),
+    };
+    progress.report(Phase::Metrics, 1.0);
+    Ok(Outcome {
+        result,
+        fields: sol.fields,
+        picture: sol.picture,
+    })
+}
+
+/// Solves the job's scene at the given order, resolution and keep rule.
+pub fn solve_job(
+    job: &Job,
+    order: usize,
+    resolution: usize,
+    keep: Keep,
+    progress: &dyn Progress,
+) -> Result<Solution, JobError> {
+    match (&job.scene.kind, job.solver.method) {
+        (SceneKind::ThreeD(_), _) | (_, Method::Hierarchical) => Err(JobError::Unsupported(format!(
+            "{} scenes with the {:?} method are not available in this build",
+            job.scene.kind.name(),
+            job.solver.method
+        ))),
+        _ => {
+            let disc = Discretization {
+                order,
+                cells: resolution,
+                quadrature: if order == job.solver.order {
+                    job.solver.quadrature
+                } else {
+                    job.solver.quadrature.max(order + 2)
+                },
+            };
+            let t = Instant::now();
+            let system = projection::build(job, disc, progress)?;
+            let build_ms = ms(t);
+            let mut sol = projection_solve(system, job, keep, progress)?;
+            sol.timings.insert("projection".into(), build_ms);
+            let t = Instant::now();
+            let (err, left_out) = kernel_error_1d(job, disc, &sol, progress)?;
+            sol.kernel_error = err;
+            sol.left_out = left_out;
+            sol.timings.insert("metrics".into(), ms(t));
+            Ok(sol)
+        }
+    }
+}
+
+/// Transform, threshold and solve a system; B, E and H as fields.
+pub fn projection_solve(
+    mut system: System,
+    job: &Job,
+    keep: Keep,
+    progress: &dyn Progress,
+) -> Result<Solution, JobError> {
+    let mut timings = BTreeMap::new();
+    let wavelet = job.solver.basis == BasisKind::Wavelet;
+    let layout = system.layout;
+    let t = Instant::now();
+    if wavelet {
+        compress::to_wavelet(&mut system, progress)?;
+    }
+    timings.insert("transform".into(), ms(t));
+    let t = Instant::now();
+    progress.check()?;
+    let sorted = compress::sorted_magnitudes(&system.matrix);
+    let Kept { csr, cut, .. } = compress::threshold(&system.matrix, keep, &sorted);
+    let picture = compress::picture(&system.matrix, 512, cut);
+    let per = layout.len();
+    let s = system.surfaces;
+    let mut squares = vec![0.0; s * s];
+    for i in 0..csr.n {
+        let (cols, vals) = csr.row(i);
+        for (&j, &v) in cols.iter().zip(vals) {
+            squares[(i / per) * s + j as usize / per] += v * v;
+        }
+    }
+    let basis_size = system.size();
+    let matrix_entries = basis_size * basis_size;
+    drop(std::mem::take(&mut system.matrix.data));
+    timings.insert("threshold".into(), ms(t));
+    let t = Instant::now();
+    let rho: Vec<Rgb> = (0..basis_size)
+        .map(|i| system.reflectance[system.surface_of(i)])
+        .collect();
+    let settings = solve::Settings {
+        iteration: job.solver.iteration,
+        tolerance: job.solver.tolerance,
+        max_iterations: job.solver.max_iterations,
+    };
+    let solved = solve::solve(&csr, &rho, &system.emission, settings, progress)?;
+    timings.insert("solve".into(), ms(t));
+    let mut b = solved.b.clone();
+    let mut h = solve::multiply(&csr, &solved.b);
+    let mut e = system.emission.clone();
+    if wavelet {
+        for v in [&mut b, &mut h, &mut e] {
+            compress::inverse_rgb(layout, v);
+        }
+    }
+    let order = layout.k() - 1;
+    let fields = fields_from_scaling(layout, order, &system.measure, &b);
+    let irradiance = fields_from_scaling(layout, order, &system.measure, &h);
+    let emission = fields_from_scaling(layout, order, &system.measure, &e);
+    let kept_entries = csr.nnz();
+    let mut sol = Solution {
+        fields,
+        emission,
+        irradiance,
+        basis_size,
+        matrix_entries,
+        kept_entries,
+        cut,
+        sorted,
+        picture: Some(picture),
+        solved,
+        kernel_error: None,
+        left_out: system.touching.clone(),
+        hierarchy: None,
+        timings,
+        kept_squares: Vec::new(),
+    };
+    sol.kept_squares = squares;
+    Ok(sol)
+}
+
+/// Eq. (5) for flatland and fredholm.
+fn kernel_error_1d(
+    job: &Job,
+    disc: Discretization,
+    sol: &Solution,
+    progress: &dyn Progress,
+) -> Result<(Option<f64>, Vec<(usize, usize)>), Cancelled> {
+    progress.check()?;
+    let squares = &sol.kept_squares;
+    let fine = Discretization {
+        order: 0,
+        cells: disc.cells.min(32),
+        quadrature: disc.quadrature + 3,
+    };
+    match &job.scene.kind {
+        SceneKind::Flatland(segments) => {
+            let geo = flatland::Geometry::new(segments);
+            let touching = geo.touching();
+            let touch = |i: usize, j: usize| touching.contains(&(i.min(j), i.max(j)));
+            let k2 = flatland::kernel_squares(&geo, fine, touch);
+            let s = segments.len();
+            let mut kept = 0.0;
+            for i in 0..s {
+                for j in 0..s {
+                    if i != j && !touch(i, j) {
+                        kept += squares[i * s + j];
+                    }
+                }
+            }
+            let total: f64 = k2.iter().sum();
+            Ok((metrics::kernel_relative_error(total, kept), touching))
+        }
+        SceneKind::Fredholm(f) => {
+            let [a, b] = f.domain;
+            let n = fine.cells;
+            let h = (b - a) / n as f64;
+            let rule = crate::quadrature::Rule::gauss(fine.quadrature + 2);
+            let mut total = 0.0;
+            for ca in 0..n {
+                for cb in 0..n {
+                    let sa = [a + ca as f64 * h, a + (ca + 1) as f64 * h];
+                    let sb = [a + cb as f64 * h, a + (cb + 1) as f64 * h];
+                    total += rule.integrate2(sa, sb, |x, y| f.kernel.eval(x, y).powi(2));
+                }
+            }
+            Ok((metrics::kernel_relative_error(total, squares.iter().sum()), vec![]))
+        }
+        SceneKind::ThreeD(_) => Ok((sol.kernel_error, vec![])),
+    }
+}
+
+/// Per-surface fields from scaling-basis coefficients: N = φ_p(ŝ)[φ_q(t̂)] / √(h^d · measure).
+pub fn fields_from_scaling(layout: Layout, order: usize, measure: &[f64], coeffs: &[Rgb]) -> Vec<Field> {
+    let per = layout.len();
+    coeffs
+        .chunks(per)
+        .zip(measure)
+        .map(|(c, &m)| {
+            let h = 1.0 / layout.cells() as f64;
+            match layout {
+                Layout::Line { cells, .. } => {
+                    let f = 1.0 / (h * m).sqrt();
+                    let local: Vec<Rgb> = c.iter().map(|v| v.map(|x| x * f)).collect();
+                    Field::uniform_line(order, cells, &local)
+                }
+                Layout::Square { cells, .. } => {
+                    let f = 1.0 / (h * h * m).sqrt();
+                    let local: Vec<Rgb> = c.iter().map(|v| v.map(|x| x * f)).collect();
+                    Field::uniform_square(order, cells, &local)
+                }
+            }
+        })
+        .collect()
+}
+
+/// Length or area of every surface (the domain's length for fredholm).
+pub fn surface_measures(job: &Job) -> Vec<f64> {
+    match &job.scene.kind {
+        SceneKind::Flatland(s) => s
+            .iter()
+            .map(|s| (s.b[0] - s.a[0]).hypot(s.b[1] - s.a[1]))
+            .collect(),
+        SceneKind::ThreeD(q) => q
+            .iter()
+            .map(|q| {
+                let c = &q.corners;
+                let e1 = [c[1][0] - c[0][0], c[1][1] - c[0][1], c[1][2] - c[0][2]];
+                let e3 = [c[3][0] - c[0][0], c[3][1] - c[0][1], c[3][2] - c[0][2]];
+                let x = [
+                    e1[1] * e3[2] - e1[2] * e3[1],
+                    e1[2] * e3[0] - e1[0] * e3[2],
+                    e1[0] * e3[1] - e1[1] * e3[0],
+                ];
+                (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
+            })
+            .collect(),
+        SceneKind::Fredholm(f) => vec![f.domain[1] - f.domain[0]],
+    }
+}
+
+pub fn reflectances(job: &Job) -> Vec<Rgb> {
+    match &job.scene.kind {
+        SceneKind::Flatland(s) => s.iter().map(|s| s.material.reflectance).collect(),
+        SceneKind::ThreeD(q) => q.iter().map(|q| q.material.reflectance).collect(),
+        SceneKind::Fredholm(_) => vec![[1.0; 3]],
+    }
+}
+
+fn echo(job: &Job) -> SolverEcho {
+    let s = &job.solver;
+    SolverEcho {
+        method: match s.method {
+            Method::Projection => "projection",
+            Method::Hierarchical => "hierarchical",
+        }
+        .into(),
+        basis: match s.basis {
+            BasisKind::Scaling => "scaling",
+            BasisKind::Wavelet => "wavelet",
+        }
+        .into(),
+        order: s.order,
+        resolution: s.resolution,
+        keep: match s.keep {
+            Keep::All => serde_json::json!("all"),
+            Keep::Top(n) => serde_json::json!({ "top": n }),
+            Keep::Fraction(f) => serde_json::json!({ "fraction": f }),
+            Keep::Threshold(t) => serde_json::json!({ "threshold": t }),
+        },
+        iteration: match s.iteration {
+            crate::scene::Iteration::Jacobi => "jacobi",
+            crate::scene::Iteration::GaussSeidel => "gauss-seidel",
+        }
+        .into(),
+        tolerance: s.tolerance,
+        max_iterations: s.max_iterations,
+        quadrature: s.quadrature,
+        epsilon: s.epsilon,
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    (t.elapsed().as_secs_f64() * 1e6).round() / 1e3
+}
+
+/// Forwards progress under another phase (the reference solve reports as `reference`).
+struct Relabel<'a> {
+    inner: &'a dyn Progress,
+    phase: Phase,
+}
+
+impl Progress for Relabel<'_> {
+    fn report(&self, _phase: Phase, fraction: f64) {
+        self.inner.report(self.phase, fraction);
+    }
+    fn cancelled(&self) -> bool {
+        self.inner.cancelled()
+    }
+}

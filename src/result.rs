@@ -1,0 +1,101 @@
+//! The result of a finished job (`spec/scene.md`, "What a finished job yields"), as serialised.
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JobResult {
+    /// The scene's name, when it has one.
+    pub scene: Option<String>,
+    pub kind: String,
+    /// The solver settings in effect, every default applied.
+    pub solver: SolverEcho,
+    pub surfaces: Vec<SurfaceResult>,
+    pub coefficients: Coefficients,
+    pub metrics: Metrics,
+    /// Milliseconds per phase (the only part of a result that varies between runs).
+    pub timings_ms: std::collections::BTreeMap<String, f64>,
+    /// Hierarchical method only: the size of the link structure.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub hierarchical: Option<HierarchyStats>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SolverEcho {
+    pub method: String,
+    pub basis: String,
+    pub order: usize,
+    pub resolution: usize,
+    pub keep: serde_json::Value,
+    pub iteration: String,
+    pub tolerance: f64,
+    pub max_iterations: usize,
+    pub quadrature: usize,
+    pub epsilon: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceResult {
+    pub name: String,
+    /// Mean of B over the surface, per channel.
+    pub mean: [f64; 3],
+    /// Cell means on the output grid: `grid` cells (flatland, fredholm) or `grid × grid`
+    /// (3d, rows by t then s).
+    pub cells: Vec<[f64; 3]>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Coefficients {
+    /// Unknowns of the linear system (per channel).
+    pub basis_size: usize,
+    /// Entries of the kernel matrix (basis_size², or the link coefficients of the hierarchy).
+    pub matrix_entries: usize,
+    /// Non-zero entries kept after thresholding.
+    pub kept_entries: usize,
+    /// The fraction of matrix entries that are zero after thresholding: 1 − kept / entries.
+    pub sparsity_ratio: f64,
+    /// The smallest magnitude kept (0 when everything is kept).
+    pub cut: f64,
+    /// Magnitudes of the matrix entries sorted in decreasing order, sampled evenly in rank.
+    pub sorted_magnitudes: Vec<f64>,
+    /// The rank (0-based, in the whole sorted list) of each sampled magnitude.
+    pub sorted_ranks: Vec<usize>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    /// Eq. (5) over the pairs of surfaces that do not touch.
+    pub kernel_relative_error: Option<f64>,
+    /// The pairs of surfaces left out of eq. (5) because they touch.
+    pub kernel_pairs_left_out: Vec<[String; 2]>,
+    /// Eq. (6), when a reference is set.
+    pub radiosity_relative_error: Option<f64>,
+    /// What eq. (6) was measured against: "exact" or "order m, resolution n".
+    pub reference: Option<String>,
+    pub iterations: usize,
+    pub converged: bool,
+    /// ‖E + ρKB − B‖ / ‖B‖ after the last sweep.
+    pub final_residual: f64,
+    /// The relative change of B at each sweep.
+    pub residual_history: Vec<f64>,
+    pub energy: EnergyBalance,
+}
+
+/// Power per channel: emitted, absorbed (∫ (1 − ρ) H over the surfaces, H the irradiance) and
+/// their ratio, which is 1 in a closed scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EnergyBalance {
+    pub emitted: [f64; 3],
+    pub absorbed: [f64; 3],
+    /// absorbed / emitted.
+    pub balance: [f64; 3],
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HierarchyStats {
+    pub elements: usize,
+    pub leaves: usize,
+    pub links: usize,
+    pub levels: usize,
+    pub refinements: usize,
+    pub rays: u64,
+}

@@ -1,0 +1,290 @@
+//! The job document of `spec/scene.md`, in two stages: [`parse`] walks the raw JSON value and
+//! collects every error with its JSON path, and returns the validated types below, in which every
+//! default of the spec is applied and every invariant holds.
+
+mod expr;
+mod parse;
+mod walk;
+
+pub use expr::{Expr, ExprError};
+pub use parse::{parse_document, parse_value};
+
+use serde::Serialize;
+
+/// One error of a document: the JSON pointer of the value at fault and what is wrong with it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct FieldError {
+    pub path: String,
+    pub message: String,
+}
+
+impl std::fmt::Display for FieldError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let path = if self.path.is_empty() { "/" } else { &self.path };
+        write!(f, "{path}: {}", self.message)
+    }
+}
+
+/// Every error of a document, in document order.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DocumentErrors(pub Vec<FieldError>);
+
+impl std::fmt::Display for DocumentErrors {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        for (i, e) in self.0.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{e}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for DocumentErrors {}
+
+/// Limits that a document must respect (the server's configuration; generous defaults for the
+/// library and the command line).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limits {
+    pub max_surfaces: usize,
+    pub max_order: usize,
+    pub max_resolution: usize,
+    /// The projection matrix is `basis_size²` dense entries of 8 bytes.
+    pub max_basis_functions: usize,
+    pub max_image_pixels: usize,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_surfaces: 256,
+            max_order: 8,
+            max_resolution: 1024,
+            // 11_585² × 8 bytes ≈ 1 GiB of dense matrix.
+            max_basis_functions: 11_585,
+            max_image_pixels: 4096 * 4096,
+        }
+    }
+}
+
+/// An RGB triple: reflectance or emission per channel.
+pub type Rgb = [f64; 3];
+
+/// A validated job document.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Job {
+    pub scene: Scene,
+    pub solver: Solver,
+    pub output: Output,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    pub name: Option<String>,
+    pub kind: SceneKind,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum SceneKind {
+    Flatland(Vec<Segment>),
+    ThreeD(Vec<Quad>),
+    Fredholm(Fredholm),
+}
+
+impl SceneKind {
+    pub fn name(&self) -> &'static str {
+        match self {
+            SceneKind::Flatland(_) => "flatland",
+            SceneKind::ThreeD(_) => "3d",
+            SceneKind::Fredholm(_) => "fredholm",
+        }
+    }
+}
+
+/// Optical properties shared by flatland and 3D surfaces.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Material {
+    pub reflectance: Rgb,
+    pub emission: Rgb,
+}
+
+/// A flatland surface: p(s) = a + s(b − a), front normal (b − a) turned +90°.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Segment {
+    pub name: String,
+    pub a: [f64; 2],
+    pub b: [f64; 2],
+    pub material: Material,
+    /// `[s0, s1]` with 0 ≤ s0 < s1 ≤ 1; `[0, 1]` when the document has none.
+    pub emission_region: [f64; 2],
+}
+
+/// A 3D surface: p(s,t) = p0 + s(p1 − p0) + t(p3 − p0), front normal (p1 − p0) × (p3 − p0).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Quad {
+    pub name: String,
+    pub corners: [[f64; 3]; 4],
+    pub material: Material,
+    /// `([s0, s1], [t0, t1])`; the whole surface when the document has none.
+    pub emission_region: ([f64; 2], [f64; 2]),
+}
+
+/// `B(x) = E(x) + ∫_a^b K(x,y) B(y) dy`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fredholm {
+    pub domain: [f64; 2],
+    pub kernel: Expr,
+    pub source: Expr,
+    pub exact: Option<Expr>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    Projection,
+    Hierarchical,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BasisKind {
+    Scaling,
+    Wavelet,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Keep {
+    All,
+    Top(usize),
+    Fraction(f64),
+    Threshold(f64),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Iteration {
+    Jacobi,
+    GaussSeidel,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solver {
+    pub method: Method,
+    pub basis: BasisKind,
+    pub order: usize,
+    pub resolution: usize,
+    pub keep: Keep,
+    pub iteration: Iteration,
+    pub tolerance: f64,
+    pub max_iterations: usize,
+    /// Gauss–Legendre points per cell and dimension.
+    pub quadrature: usize,
+    pub epsilon: f64,
+}
+
+impl Default for Solver {
+    fn default() -> Self {
+        Solver {
+            method: Method::Projection,
+            basis: BasisKind::Wavelet,
+            order: 1,
+            resolution: 8,
+            keep: Keep::All,
+            iteration: Iteration::Jacobi,
+            tolerance: 1e-6,
+            max_iterations: 500,
+            quadrature: 3,
+            epsilon: 1e-3,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Exposure {
+    Auto,
+    /// The radiance that maps to white.
+    White(f64),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImageSpec {
+    pub width: u32,
+    pub height: u32,
+    pub exposure: Exposure,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    pub eye: [f64; 3],
+    pub look_at: [f64; 3],
+    pub up: [f64; 3],
+    pub fov_deg: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Reference {
+    Exact,
+    Finer { order: usize, resolution: usize },
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Output {
+    pub image: ImageSpec,
+    /// `None`: framed automatically.
+    pub camera: Option<Camera>,
+    pub grid: usize,
+    pub reference: Option<Reference>,
+    pub coefficients: usize,
+}
+
+impl Default for Output {
+    fn default() -> Self {
+        Output {
+            image: ImageSpec {
+                width: 512,
+                height: 512,
+                exposure: Exposure::Auto,
+            },
+            camera: None,
+            grid: 8,
+            reference: None,
+            coefficients: 256,
+        }
+    }
+}
+
+impl Job {
+    /// Number of surfaces (1 for `fredholm`, whose domain is one "surface").
+    pub fn surface_count(&self) -> usize {
+        match &self.scene.kind {
+            SceneKind::Flatland(s) => s.len(),
+            SceneKind::ThreeD(q) => q.len(),
+            SceneKind::Fredholm(_) => 1,
+        }
+    }
+
+    /// Names of the surfaces in document order (`"domain"` for `fredholm`).
+    pub fn surface_names(&self) -> Vec<String> {
+        match &self.scene.kind {
+            SceneKind::Flatland(s) => s.iter().map(|s| s.name.clone()).collect(),
+            SceneKind::ThreeD(q) => q.iter().map(|q| q.name.clone()).collect(),
+            SceneKind::Fredholm(_) => vec!["domain".to_string()],
+        }
+    }
+
+    /// Basis functions per surface of the projection method: `n (m+1)` in 1D, `(n (m+1))²` on a quad.
+    pub fn basis_per_surface(&self) -> usize {
+        let per_side = self.solver.resolution * (self.solver.order + 1);
+        match self.scene.kind {
+            SceneKind::ThreeD(_) => per_side * per_side,
+            _ => per_side,
+        }
+    }
+
+    /// Size of the projection method's linear system.
+    pub fn basis_size(&self) -> usize {
+        self.surface_count() * self.basis_per_surface()
+    }
+}

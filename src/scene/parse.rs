@@ -1,0 +1,816 @@
+//! Stage two of the document: from a raw JSON value to a validated [`Job`], every error at once.
+
+use super::walk::{child, index, Walker};
+use super::*;
+use serde_json::{Map, Value};
+
+/// Parses JSON text. A text that is not JSON at all gives one error at the root path.
+pub fn parse_document(text: &str, limits: &Limits) -> Result<Job, DocumentErrors> {
+    let value: Value = serde_json::from_str(text).map_err(|e| {
+        DocumentErrors(vec![FieldError {
+            path: String::new(),
+            message: format!("not valid JSON: {e}"),
+        }])
+    })?;
+    parse_value(&value, limits)
+}
+
+/// Validates a JSON value as a job document, applying every default of the spec.
+pub fn parse_value(v: &Value, limits: &Limits) -> Result<Job, DocumentErrors> {
+    let mut w = Walker::default();
+    let job = document(&mut w, v, limits);
+    match job {
+        Some(job) if w.errors.is_empty() => Ok(job),
+        _ => Err(DocumentErrors(w.errors)),
+    }
+}
+
+fn document(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Job> {
+    let root = w.object(v, "", &["scene", "solver", "output"])?;
+    let scene = w
+        .required(root, "", "scene")
+        .and_then(|s| scene(w, s, limits));
+    let kind_name = root
+        .get("scene")
+        .and_then(|s| s.get("kind"))
+        .and_then(Value::as_str);
+    let solver = match root.get("solver") {
+        Some(s) => solver(w, s, limits, kind_name),
+        None => Some(Solver::default()),
+    };
+    let output = match root.get("output") {
+        Some(o) => output(w, o, limits),
+        None => Some(Output::default()),
+    };
+    let job = Job {
+        scene: scene?,
+        solver: solver?,
+        output: output?,
+    };
+    cross_checks(w, &job, limits);
+    Some(job)
+}
+
+fn scene(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Scene> {
+    let path = "/scene";
+    let kind = v
+        .get("kind")
+        .and_then(Value::as_str)
+        .filter(|k| ["flatland", "3d", "fredholm"].contains(k));
+    let allowed: &[&str] = match kind {
+        Some("fredholm") => &["kind", "name", "domain", "kernel", "source", "exact"],
+        Some(_) => &["kind", "name", "surfaces"],
+        None => &[
+            "kind", "name", "surfaces", "domain", "kernel", "source", "exact",
+        ],
+    };
+    let map = w.object(v, path, allowed)?;
+    let kind_value = w.required(map, path, "kind");
+    if let Some(k) = kind_value {
+        w.choice(k, &child(path, "kind"), &["flatland", "3d", "fredholm"]);
+    }
+    let name = map
+        .get("name")
+        .and_then(|n| w.string(n, "/scene/name"))
+        .map(str::to_string);
+    let kind = match kind? {
+        "fredholm" => SceneKind::Fredholm(fredholm(w, map)?),
+        k => {
+            let surfaces = w.required(map, path, "surfaces")?;
+            let p = "/scene/surfaces";
+            let Some(list) = surfaces.as_array() else {
+                w.error(p, "expected an array of surfaces");
+                return None;
+            };
+            if list.is_empty() || list.len() > limits.max_surfaces {
+                w.error(
+                    p,
+                    format!(
+                        "a scene has 1 to {} surfaces (max_surfaces); found {}",
+                        limits.max_surfaces,
+                        list.len()
+                    ),
+                );
+                return None;
+            }
+            if k == "flatland" {
+                let segs: Vec<Option<Segment>> = list
+                    .iter()
+                    .enumerate()
+                    .map(|(i, s)| segment(w, s, &index(p, i)))
+                    .collect();
+                let segs: Option<Vec<Segment>> = segs.into_iter().collect();
+                let segs = segs?;
+                check_names(w, segs.iter().map(|s| s.name.as_str()));
+                check_emission(w, segs.iter().map(|s| &s.material));
+                SceneKind::Flatland(segs)
+            } else {
+                let quads: Vec<Option<Quad>> = list
+                    .iter()
+                    .enumerate()
+                    .map(|(i, s)| quad(w, s, &index(p, i)))
+                    .collect();
+                let quads: Option<Vec<Quad>> = quads.into_iter().collect();
+                let quads = quads?;
+                check_names(w, quads.iter().map(|q| q.name.as_str()));
+                check_emission(w, quads.iter().map(|q| &q.material));
+                SceneKind::ThreeD(quads)
+            }
+        }
+    };
+    Some(Scene { name, kind })
+}
+
+fn check_names<'a>(w: &mut Walker, names: impl Iterator<Item = &'a str>) {
+    let mut seen = std::collections::HashMap::new();
+    for (i, n) in names.enumerate() {
+        if let Some(first) = seen.insert(n, i) {
+            w.error(
+                format!("/scene/surfaces/{i}/name"),
+                format!("duplicate surface name \"{n}\" (also surface {first})"),
+            );
+            seen.insert(n, first);
+        }
+    }
+}
+
+fn check_emission<'a>(w: &mut Walker, materials: impl Iterator<Item = &'a Material>) {
+    let mut any = false;
+    for m in materials {
+        any |= m.emission.iter().any(|e| *e > 0.0);
+    }
+    if !any {
+        w.error(
+            "/scene/surfaces",
+            "the scene emits no light: give at least one surface a positive emission",
+        );
+    }
+}
+
+fn fredholm(w: &mut Walker, map: &Map<String, Value>) -> Option<Fredholm> {
+    let path = "/scene";
+    let domain = w.required(map, path, "domain").and_then(|d| {
+        let p = "/scene/domain";
+        let [a, b] = w.numbers::<2>(d, p)?;
+        if a >= b {
+            w.error(p, format!("the domain [a, b] needs a < b; found [{a}, {b}]"));
+            return None;
+        }
+        Some([a, b])
+    });
+    let mut expression = |key: &str, vars: &[&str], required: bool| -> Option<Option<Expr>> {
+        let p = child(path, key);
+        let Some(v) = map.get(key) else {
+            if required {
+                w.error(&p, format!("missing required field `{key}`"));
+                return None;
+            }
+            return Some(None);
+        };
+        let text = w.string(v, &p)?;
+        match Expr::parse(text, vars) {
+            Ok(e) => Some(Some(e)),
+            Err(e) => {
+                w.error(&p, e.0);
+                None
+            }
+        }
+    };
+    let kernel = expression("kernel", &["x", "y"], true);
+    let source = expression("source", &["x"], true);
+    let exact = expression("exact", &["x"], false);
+    Some(Fredholm {
+        domain: domain?,
+        kernel: kernel??,
+        source: source??,
+        exact: exact?,
+    })
+}
+
+fn material(w: &mut Walker, map: &Map<String, Value>, path: &str) -> Option<Material> {
+    let reflectance = w
+        .required(map, path, "reflectance")
+        .and_then(|r| rgb(w, r, &child(path, "reflectance"), |x| (0.0..1.0).contains(&x), "reflectance is in [0, 1)"));
+    let emission = match map.get("emission") {
+        Some(e) => rgb(w, e, &child(path, "emission"), |x| x >= 0.0, "emission is ≥ 0"),
+        None => Some([0.0; 3]),
+    };
+    Some(Material {
+        reflectance: reflectance?,
+        emission: emission?,
+    })
+}
+
+/// A number (the same for the three channels) or `[r, g, b]`.
+fn rgb(w: &mut Walker, v: &Value, path: &str, ok: fn(f64) -> bool, what: &str) -> Option<Rgb> {
+    if v.is_number() {
+        let x = w.number_in(v, path, ok, what)?;
+        return Some([x; 3]);
+    }
+    if !v.is_array() {
+        w.error(path, "expected a number or [r, g, b]");
+        return None;
+    }
+    let arr = w.array_len(v, path, 3)?;
+    let mut out = [0.0; 3];
+    let mut good = true;
+    for (i, x) in arr.iter().enumerate() {
+        match w.number_in(x, &index(path, i), ok, what) {
+            Some(x) => out[i] = x,
+            None => good = false,
+        }
+    }
+    good.then_some(out)
+}
+
+fn surface_name(w: &mut Walker, map: &Map<String, Value>, path: &str) -> Option<String> {
+    let n = w.required(map, path, "name")?;
+    let p = child(path, "name");
+    let s = w.string(n, &p)?;
+    if s.is_empty() || s.len() > 128 || s.contains(['/', '\\']) || s.chars().any(char::is_control) {
+        w.error(
+            &p,
+            "a surface name is 1 to 128 characters with no slash or control character",
+        );
+        return None;
+    }
+    Some(s.to_string())
+}
+
+fn interval(w: &mut Walker, v: &Value, path: &str) -> Option<[f64; 2]> {
+    let [a, b] = w.numbers::<2>(v, path)?;
+    if !(0.0 <= a && a < b && b <= 1.0) {
+        w.error(path, format!("expected [s0, s1] with 0 ≤ s0 < s1 ≤ 1; found [{a}, {b}]"));
+        return None;
+    }
+    Some([a, b])
+}
+
+fn segment(w: &mut Walker, v: &Value, path: &str) -> Option<Segment> {
+    let map = w.object(
+        v,
+        path,
+        &["name", "segment", "reflectance", "emission", "emission_region"],
+    )?;
+    let name = surface_name(w, map, path);
+    let ends = w.required(map, path, "segment").and_then(|s| {
+        let p = child(path, "segment");
+        let arr = w.array_len(s, &p, 2)?;
+        let a = w.numbers::<2>(&arr[0], &index(&p, 0));
+        let b = w.numbers::<2>(&arr[1], &index(&p, 1));
+        let (a, b) = (a?, b?);
+        let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+        let size = a.iter().chain(&b).fold(0.0f64, |m, x| m.max(x.abs()));
+        if len <= 1e-12 * size.max(1e-300) || len == 0.0 {
+            w.error(&p, "the segment has zero length");
+            return None;
+        }
+        Some((a, b))
+    });
+    let material = material(w, map, path);
+    let region = match map.get("emission_region") {
+        Some(r) => interval(w, r, &child(path, "emission_region")),
+        None => Some([0.0, 1.0]),
+    };
+    let (a, b) = ends?;
+    Some(Segment {
+        name: name?,
+        a,
+        b,
+        material: material?,
+        emission_region: region?,
+    })
+}
+
+fn quad(w: &mut Walker, v: &Value, path: &str) -> Option<Quad> {
+    let map = w.object(
+        v,
+        path,
+        &["name", "corners", "reflectance", "emission", "emission_region"],
+    )?;
+    let name = surface_name(w, map, path);
+    let corners = w.required(map, path, "corners").and_then(|c| {
+        let p = child(path, "corners");
+        let arr = w.array_len(c, &p, 4)?;
+        let pts: Vec<Option<[f64; 3]>> = arr
+            .iter()
+            .enumerate()
+            .map(|(i, x)| w.numbers::<3>(x, &index(&p, i)))
+            .collect();
+        let pts: Option<Vec<[f64; 3]>> = pts.into_iter().collect();
+        let pts = pts?;
+        let c = [pts[0], pts[1], pts[2], pts[3]];
+        check_parallelogram(w, &c, &p).then_some(c)
+    });
+    let material = material(w, map, path);
+    let region = match map.get("emission_region") {
+        Some(r) => {
+            let p = child(path, "emission_region");
+            w.object(r, &p, &["s", "t"]).and_then(|m| {
+                let s = w.required(m, &p, "s").and_then(|s| interval(w, s, &child(&p, "s")));
+                let t = w.required(m, &p, "t").and_then(|t| interval(w, t, &child(&p, "t")));
+                Some((s?, t?))
+            })
+        }
+        None => Some(([0.0, 1.0], [0.0, 1.0])),
+    };
+    Some(Quad {
+        name: name?,
+        corners: corners?,
+        material: material?,
+        emission_region: region?,
+    })
+}
+
+/// p0 + p2 = p1 + p3 within 1e-6 of the size, and a non-zero area.
+fn check_parallelogram(w: &mut Walker, c: &[[f64; 3]; 4], path: &str) -> bool {
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let norm = |a: [f64; 3]| (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    let e1 = sub(c[1], c[0]);
+    let e3 = sub(c[3], c[0]);
+    let size = norm(e1).max(norm(e3)).max(norm(sub(c[2], c[0])));
+    let gap = norm(sub([c[0][0] + c[2][0], c[0][1] + c[2][1], c[0][2] + c[2][2]], [
+        c[1][0] + c[3][0],
+        c[1][1] + c[3][1],
+        c[1][2] + c[3][2],
+    ]));
+    let cross = [
+        e1[1] * e3[2] - e1[2] * e3[1],
+        e1[2] * e3[0] - e1[0] * e3[2],
+        e1[0] * e3[1] - e1[1] * e3[0],
+    ];
+    if size == 0.0 || norm(cross) <= 1e-12 * size * size {
+        w.error(path, "the surface has zero area (its corners are collinear or equal)");
+        return false;
+    }
+    if gap > 1e-6 * size {
+        w.error(
+            path,
+            format!("the corners are not a parallelogram: p0 + p2 − p1 − p3 has length {gap:.3e}, more than 1e-6 of the size {size:.3e}"),
+        );
+        return false;
+    }
+    true
+}
+
+fn solver(w: &mut Walker, v: &Value, limits: &Limits, kind: Option<&str>) -> Option<Solver> {
+    let path = "/solver";
+    let map = w.object(
+        v,
+        path,
+        &[
+            "method", "basis", "order", "resolution", "keep", "iteration", "tolerance",
+            "max_iterations", "quadrature", "epsilon",
+        ],
+    )?;
+    let d = Solver::default();
+    let mut ok = true;
+    let get = |key: &str| map.get(key).map(|v| (v, child(path, key)));
+
+    let method = match get("method") {
+        Some((v, p)) => match w.choice(v, &p, &["projection", "hierarchical"]) {
+            Some("hierarchical") => {
+                if kind == Some("fredholm") {
+                    w.error(&p, "\"hierarchical\" solves flatland and 3d scenes; a fredholm equation uses \"projection\"");
+                    ok = false;
+                }
+                Method::Hierarchical
+            }
+            Some(_) => Method::Projection,
+            None => {
+                ok = false;
+                d.method
+            }
+        },
+        None => d.method,
+    };
+    let basis = match get("basis") {
+        Some((v, p)) => match w.choice(v, &p, &["scaling", "wavelet"]) {
+            Some("scaling") => BasisKind::Scaling,
+            Some(_) => BasisKind::Wavelet,
+            None => {
+                ok = false;
+                d.basis
+            }
+        },
+        None => d.basis,
+    };
+    let mut int = |key: &str, lo: u64, hi: u64, default: usize, ok: &mut bool| match get(key) {
+        Some((v, p)) => w.integer(v, &p, lo, hi).unwrap_or_else(|| {
+            *ok = false;
+            default
+        }),
+        None => default,
+    };
+    let order = int("order", 0, limits.max_order as u64, d.order, &mut ok);
+    let resolution = int("resolution", 1, limits.max_resolution as u64, d.resolution, &mut ok);
+    let max_iterations = int("max_iterations", 1, 1_000_000, d.max_iterations, &mut ok);
+    let quadrature = int("quadrature", 1, 64, order + 2, &mut ok);
+    let needs_pow2 = basis == BasisKind::Wavelet || method == Method::Hierarchical;
+    if ok && needs_pow2 && !resolution.is_power_of_two() {
+        let why = if method == Method::Hierarchical {
+            "the hierarchical method"
+        } else {
+            "the wavelet basis"
+        };
+        w.error(
+            child(path, "resolution"),
+            format!("{why} needs a power of two; found {resolution}"),
+        );
+        ok = false;
+    }
+    let keep = match get("keep") {
+        Some((v, p)) => keep(w, v, &p).unwrap_or_else(|| {
+            ok = false;
+            Keep::All
+        }),
+        None => Keep::All,
+    };
+    let iteration = match get("iteration") {
+        Some((v, p)) => match w.choice(v, &p, &["jacobi", "gauss-seidel"]) {
+            Some("gauss-seidel") => Iteration::GaussSeidel,
+            Some(_) => Iteration::Jacobi,
+            None => {
+                ok = false;
+                d.iteration
+            }
+        },
+        None => d.iteration,
+    };
+    let mut positive = |key: &str, default: f64, ok: &mut bool| match get(key) {
+        Some((v, p)) => w
+            .number_in(v, &p, |x| x > 0.0 && x < 1.0, "must be in (0, 1)")
+            .unwrap_or_else(|| {
+                *ok = false;
+                default
+            }),
+        None => default,
+    };
+    let tolerance = positive("tolerance", d.tolerance, &mut ok);
+    let epsilon = positive("epsilon", d.epsilon, &mut ok);
+    ok.then_some(Solver {
+        method,
+        basis,
+        order,
+        resolution,
+        keep,
+        iteration,
+        tolerance,
+        max_iterations,
+        quadrature,
+        epsilon,
+    })
+}
+
+fn keep(w: &mut Walker, v: &Value, path: &str) -> Option<Keep> {
+    if v.as_str() == Some("all") {
+        return Some(Keep::All);
+    }
+    let map = w.object(v, path, &["top", "fraction", "threshold"])?;
+    if map.len() != 1 {
+        w.error(
+            path,
+            "keep is {\"top\": N}, {\"fraction\": f} or {\"threshold\": t}: exactly one field",
+        );
+        return None;
+    }
+    let (key, v) = map.iter().next()?;
+    let p = child(path, key);
+    match key.as_str() {
+        "top" => w.integer(v, &p, 1, u64::MAX >> 12).map(Keep::Top),
+        "fraction" => w
+            .number_in(v, &p, |f| f > 0.0 && f <= 1.0, "0 < fraction ≤ 1")
+            .map(Keep::Fraction),
+        _ => w
+            .number_in(v, &p, |t| t >= 0.0, "threshold ≥ 0")
+            .map(Keep::Threshold),
+    }
+}
+
+fn output(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Output> {
+    let path = "/output";
+    let map = w.object(v, path, &["image", "camera", "grid", "reference", "coefficients"])?;
+    let d = Output::default();
+    let image = match map.get("image") {
+        Some(v) => image(w, v, limits),
+        None => Some(d.image),
+    };
+    let camera = match map.get("camera") {
+        Some(v) => camera(w, v).map(Some),
+        None => Some(None),
+    };
+    let grid = match map.get("grid") {
+        Some(v) => w.integer(v, "/output/grid", 1, 1024),
+        None => Some(d.grid),
+    };
+    let reference = match map.get("reference") {
+        Some(v) => reference(w, v, limits).map(Some),
+        None => Some(None),
+    };
+    let coefficients = match map.get("coefficients") {
+        Some(v) => w.integer(v, "/output/coefficients", 0, 100_000),
+        None => Some(d.coefficients),
+    };
+    Some(Output {
+        image: image?,
+        camera: camera?,
+        grid: grid?,
+        reference: reference?,
+        coefficients: coefficients?,
+    })
+}
+
+fn image(w: &mut Walker, v: &Value, limits: &Limits) -> Option<ImageSpec> {
+    let path = "/output/image";
+    let map = w.object(v, path, &["width", "height", "exposure"])?;
+    let dim = |w: &mut Walker, key: &str| match map.get(key) {
+        Some(v) => w.integer(v, &child(path, key), 1, 16384).map(|x| x as u32),
+        None => Some(512),
+    };
+    let width = dim(w, "width");
+    let height = dim(w, "height");
+    let exposure = match map.get("exposure") {
+        None => Some(Exposure::Auto),
+        Some(Value::String(s)) if s == "auto" => Some(Exposure::Auto),
+        Some(v) => w
+            .number_in(v, "/output/image/exposure", |x| x > 0.0, "\"auto\" or a number > 0")
+            .map(Exposure::White),
+    };
+    let (width, height) = (width?, height?);
+    if (width as usize) * (height as usize) > limits.max_image_pixels {
+        w.error(
+            path,
+            format!(
+                "{width}×{height} pixels is more than max_image_pixels ({})",
+                limits.max_image_pixels
+            ),
+        );
+        return None;
+    }
+    Some(ImageSpec {
+        width,
+        height,
+        exposure: exposure?,
+    })
+}
+
+fn camera(w: &mut Walker, v: &Value) -> Option<Camera> {
+    let path = "/output/camera";
+    let map = w.object(v, path, &["eye", "look_at", "up", "fov_deg"])?;
+    let eye = w.required(map, path, "eye").and_then(|v| w.numbers::<3>(v, "/output/camera/eye"));
+    let look_at = w
+        .required(map, path, "look_at")
+        .and_then(|v| w.numbers::<3>(v, "/output/camera/look_at"));
+    let up = match map.get("up") {
+        Some(v) => w.numbers::<3>(v, "/output/camera/up"),
+        None => Some([0.0, 1.0, 0.0]),
+    };
+    let fov_deg = match map.get("fov_deg") {
+        Some(v) => w.number_in(v, "/output/camera/fov_deg", |f| f > 0.0 && f < 180.0, "0 < fov_deg < 180"),
+        None => Some(40.0),
+    };
+    let (eye, look_at, up, fov_deg) = (eye?, look_at?, up?, fov_deg?);
+    let dir = [look_at[0] - eye[0], look_at[1] - eye[1], look_at[2] - eye[2]];
+    let dn = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+    if dn == 0.0 {
+        w.error("/output/camera/look_at", "look_at equals eye: the camera has no direction");
+        return None;
+    }
+    let cross = [
+        dir[1] * up[2] - dir[2] * up[1],
+        dir[2] * up[0] - dir[0] * up[2],
+        dir[0] * up[1] - dir[1] * up[0],
+    ];
+    let un = (up[0] * up[0] + up[1] * up[1] + up[2] * up[2]).sqrt();
+    let cn = (cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]).sqrt();
+    if un == 0.0 || cn <= 1e-9 * dn * un {
+        w.error("/output/camera/up", "up is zero or parallel to the viewing direction");
+        return None;
+    }
+    Some(Camera {
+        eye,
+        look_at,
+        up,
+        fov_deg,
+    })
+}
+
+fn reference(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Reference> {
+    let path = "/output/reference";
+    if v.as_str() == Some("exact") {
+        return Some(Reference::Exact);
+    }
+    if v.is_string() {
+        w.error(path, "expected \"exact\" or {\"order\": m, \"resolution\": n}");
+        return None;
+    }
+    let map = w.object(v, path, &["order", "resolution"])?;
+    let order = w
+        .required(map, path, "order")
+        .and_then(|o| w.integer(o, "/output/reference/order", 0, limits.max_order as u64));
+    let resolution = w.required(map, path, "resolution").and_then(|r| {
+        w.integer(r, "/output/reference/resolution", 1, limits.max_resolution as u64)
+    });
+    Some(Reference::Finer {
+        order: order?,
+        resolution: resolution?,
+    })
+}
+
+/// Checks that involve more than one part of the document.
+fn cross_checks(w: &mut Walker, job: &Job, limits: &Limits) {
+    let fredholm_exact = matches!(&job.scene.kind, SceneKind::Fredholm(f) if f.exact.is_some());
+    match job.output.reference {
+        Some(Reference::Exact) if !fredholm_exact => w.error(
+            "/output/reference",
+            "\"exact\" needs a fredholm scene with an `exact` solution",
+        ),
+        Some(Reference::Finer { order, resolution }) => {
+            if order < job.solver.order || resolution < job.solver.resolution {
+                w.error(
+                    "/output/reference",
+                    format!(
+                        "the reference must be at least as fine as the solve (order ≥ {}, resolution ≥ {})",
+                        job.solver.order, job.solver.resolution
+                    ),
+                );
+            } else if order == job.solver.order && resolution == job.solver.resolution {
+                w.error(
+                    "/output/reference",
+                    "the reference is the same discretisation as the solve: make it finer",
+                );
+            } else {
+                let mut finer = job.clone();
+                finer.solver.order = order;
+                finer.solver.resolution = resolution;
+                if finer.solver.basis == BasisKind::Wavelet && !resolution.is_power_of_two() {
+                    w.error(
+                        "/output/reference/resolution",
+                        "the wavelet basis needs a power of two",
+                    );
+                }
+                if finer.basis_size() > limits.max_basis_functions {
+                    w.error(
+                        "/output/reference",
+                        format!(
+                            "the reference needs {} basis functions, more than max_basis_functions ({})",
+                            finer.basis_size(),
+                            limits.max_basis_functions
+                        ),
+                    );
+                }
+            }
+        }
+        _ => {}
+    }
+    if job.solver.method == Method::Projection && job.basis_size() > limits.max_basis_functions {
+        w.error(
+            "/solver/resolution",
+            format!(
+                "the projection matrix would have {n}² entries ({mib:.0} MiB): {n} basis functions is more than max_basis_functions ({max}); lower resolution or order",
+                n = job.basis_size(),
+                mib = (job.basis_size() as f64).powi(2) * 8.0 / (1024.0 * 1024.0),
+                max = limits.max_basis_functions
+            ),
+        );
+    }
+    if let Keep::Top(n) = job.solver.keep {
+        let entries = job.basis_size().saturating_mul(job.basis_size());
+        if job.solver.method == Method::Projection && n > entries {
+            w.error(
+                "/solver/keep/top",
+                format!("top {n} is more than the {entries} matrix entries"),
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn errors(v: Value) -> Vec<String> {
+        match parse_value(&v, &Limits::default()) {
+            Ok(_) => vec![],
+            Err(e) => e.0.into_iter().map(|e| e.path).collect(),
+        }
+    }
+
+    fn flat(extra: Value) -> Value {
+        let mut doc = json!({"scene": {"kind": "flatland", "surfaces": [
+            {"name": "a", "segment": [[0, 0], [1, 0]], "reflectance": 0.5, "emission": 1},
+            {"name": "b", "segment": [[1, 1], [0, 1]], "reflectance": [0.1, 0.2, 0.3]}
+        ]}});
+        if let (Some(d), Some(e)) = (doc.as_object_mut(), extra.as_object()) {
+            for (k, v) in e {
+                d.insert(k.clone(), v.clone());
+            }
+        }
+        doc
+    }
+
+    #[test]
+    fn applies_every_default() {
+        let job = parse_value(&flat(json!({})), &Limits::default()).unwrap();
+        assert_eq!(job.solver, Solver { quadrature: 3, ..Solver::default() });
+        assert_eq!(job.output, Output::default());
+        let SceneKind::Flatland(s) = &job.scene.kind else { panic!() };
+        assert_eq!(s[1].material.emission, [0.0; 3]);
+        assert_eq!(s[1].material.reflectance, [0.1, 0.2, 0.3]);
+        assert_eq!(s[0].emission_region, [0.0, 1.0]);
+        let job = parse_value(&flat(json!({"solver": {"order": 3}})), &Limits::default()).unwrap();
+        assert_eq!(job.solver.quadrature, 5);
+    }
+
+    #[test]
+    fn reports_every_error_with_its_path() {
+        let doc = json!({"scene": {"kind": "flatland", "surfaces": [
+            {"name": "a", "segment": [[0, 0], [0, 0]], "reflectance": 1.0, "emision": 1},
+            {"name": "a", "segment": [[1, 1], [0, 1]], "reflectance": [0.1, -0.2, 0.3], "emission": -1}
+        ]}, "solver": {"order": 99, "resolution": 12, "keep": {"top": 0}, "metod": 1},
+           "output": {"grid": 0, "reference": "exact"}});
+        let mut got = errors(doc);
+        got.sort();
+        let mut want = vec![
+            "/scene/surfaces/0/emision",
+            "/scene/surfaces/0/segment",
+            "/scene/surfaces/0/reflectance",
+            "/scene/surfaces/1/reflectance/1",
+            "/scene/surfaces/1/emission",
+            "/solver/metod",
+            "/solver/order",
+            "/solver/keep/top",
+            "/output/grid",
+        ];
+        want.sort();
+        assert_eq!(got, want);
+    }
+
+    #[test]
+    fn cross_field_errors() {
+        assert_eq!(errors(flat(json!({"solver": {"resolution": 12}}))), ["/solver/resolution"]);
+        assert!(errors(flat(json!({"solver": {"resolution": 12, "basis": "scaling"}}))).is_empty());
+        assert_eq!(errors(flat(json!({"output": {"reference": "exact"}}))), ["/output/reference"]);
+        assert_eq!(
+            errors(flat(json!({"solver": {"resolution": 1024, "order": 8}}))),
+            ["/solver/resolution"]
+        );
+        let dark = json!({"scene": {"kind": "flatland", "surfaces": [
+            {"name": "a", "segment": [[0, 0], [1, 0]], "reflectance": 0.5}]}});
+        assert_eq!(errors(dark), ["/scene/surfaces"]);
+        let dup = json!({"scene": {"kind": "flatland", "surfaces": [
+            {"name": "a", "segment": [[0, 0], [1, 0]], "reflectance": 0.5, "emission": 1},
+            {"name": "a", "segment": [[0, 1], [1, 1]], "reflectance": 0.5}]}});
+        assert_eq!(errors(dup), ["/scene/surfaces/1/name"]);
+    }
+
+    #[test]
+    fn three_d_checks() {
+        let doc = json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "ok", "corners": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]], "reflectance": 0.5, "emission": 1,
+             "emission_region": {"s": [0.4, 0.6], "t": [0.4, 0.6]}},
+            {"name": "skew", "corners": [[0,0,0],[1,0,0],[1,1,0.5],[0,1,0]], "reflectance": 0.5},
+            {"name": "flat", "corners": [[0,0,0],[1,0,0],[2,0,0],[1,0,0]], "reflectance": 0.5},
+            {"name": "region", "corners": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]], "reflectance": 0.5,
+             "emission_region": {"s": [0.6, 0.4], "t": [0, 1]}}
+        ]}, "output": {"camera": {"eye": [0,0,0], "look_at": [0,0,0]}}});
+        assert_eq!(
+            errors(doc),
+            [
+                "/scene/surfaces/1/corners",
+                "/scene/surfaces/2/corners",
+                "/scene/surfaces/3/emission_region/s",
+                "/output/camera/look_at"
+            ]
+        );
+    }
+
+    #[test]
+    fn fredholm_documents() {
+        let ok = json!({"scene": {"kind": "fredholm", "domain": [0, 1], "kernel": "x^2 + x*y",
+            "source": "1", "exact": "1 + x"}, "output": {"reference": "exact"}});
+        assert!(errors(ok).is_empty());
+        let bad = json!({"scene": {"kind": "fredholm", "domain": [1, 0], "kernel": "x + z",
+            "source": "y", "surfaces": []}, "solver": {"method": "hierarchical"}});
+        let mut got = errors(bad);
+        got.sort();
+        assert_eq!(
+            got,
+            ["/scene/domain", "/scene/kernel", "/scene/source", "/scene/surfaces", "/solver/method"]
+        );
+    }
+
+    #[test]
+    fn refuses_wrong_shapes() {
+        assert_eq!(errors(json!([])), [""]);
+        assert_eq!(errors(json!({})), ["/scene"]);
+        assert_eq!(errors(json!({"scene": {"kind": "4d"}})), ["/scene/kind"]);
+        assert_eq!(
+            errors(flat(json!({"solver": {"keep": {"top": 3, "fraction": 0.5}}}))),
+            ["/solver/keep"]
+        );
+        assert_eq!(errors(flat(json!({"solver": {"tolerance": 0}}))), ["/solver/tolerance"]);
+        assert_eq!(errors(flat(json!({"solver": {"order": 1.5}}))), ["/solver/order"]);
+    }
+}
