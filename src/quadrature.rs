@@ -105,8 +105,10 @@ mod tests {
                 assert!((got - want).abs() < 1e-14, "q={q} k={k}: {got} vs {want}");
             }
             // and not beyond: x^{2q} is integrated with a visible error
-            let over = r.integrate(0.0, 1.0, |x| x.powi(2 * q as i32));
-            assert!((over - 1.0 / (2.0 * q as f64 + 1.0)).abs() > 1e-17);
+            if q <= 8 {
+                let over = r.integrate(0.0, 1.0, |x| x.powi(2 * q as i32));
+                assert!((over - 1.0 / (2.0 * q as f64 + 1.0)).abs() > 1e-12);
+            }
         }
     }
 

@@ -89,9 +89,6 @@ fn normalize(text: &str, vars: &[&str]) -> Result<String, ExprError> {
                 out.push_str("PI");
             } else if vars.contains(&word) || FUNCTIONS.contains(&word) {
                 out.push_str(word);
-            } else if word.starts_with(|c: char| c == 'e' || c == 'E') && out.ends_with(|c: char| c.is_ascii_digit() || c == '.') {
-                // exponent of a number literal such as 1e-3
-                out.push_str(word);
             } else {
                 return Err(ExprError(format!(
                     "unknown name `{word}`; allowed are {}, pi and the functions {}",
@@ -99,7 +96,38 @@ fn normalize(text: &str, vars: &[&str]) -> Result<String, ExprError> {
                     FUNCTIONS.join(", ")
                 )));
             }
-        } else if c.is_ascii_digit() || "+-*/^(). \t\n".contains(c) {
+        } else if c.is_ascii_digit() || c == '.' {
+            // A number literal, with an optional exponent (1e-3), written out in plain decimal
+            // notation, which is what exmex reads.
+            let rest = &text[i..];
+            let mut len = rest
+                .find(|d: char| !(d.is_ascii_digit() || d == '.'))
+                .unwrap_or(rest.len());
+            let tail = &rest[len..];
+            if tail.starts_with(['e', 'E']) {
+                let exp = &tail[1..];
+                let sign = usize::from(exp.starts_with(['+', '-']));
+                let digits = exp[sign..].find(|d: char| !d.is_ascii_digit()).unwrap_or(exp.len() - sign);
+                if digits > 0 {
+                    len += 1 + sign + digits;
+                }
+            }
+            let literal = &rest[..len];
+            let value: f64 = literal
+                .parse()
+                .map_err(|_| ExprError(format!("`{literal}` is not a number")))?;
+            if !value.is_finite() {
+                return Err(ExprError(format!("`{literal}` is out of range")));
+            }
+            out.push_str(&format!("{value}"));
+            while let Some(&(j, _)) = chars.peek() {
+                if j < i + len {
+                    chars.next();
+                } else {
+                    break;
+                }
+            }
+        } else if "+-*/^() \t\n".contains(c) {
             out.push(c);
         } else {
             return Err(ExprError(format!("unexpected character `{c}`")));
