@@ -1,5 +1,9 @@
 use serde_json::{json, Value};
-use wavrad::{job, progress::Silent, scene::{parse_value, Limits}};
+use wavrad::{
+    job,
+    progress::Silent,
+    scene::{parse_value, Limits},
+};
 fn main() {
     let name = std::env::args().nth(1).unwrap();
     let doc: Value = serde_json::from_str(&std::fs::read_to_string(&name).unwrap()).unwrap();
@@ -12,7 +16,11 @@ fn main() {
                 d["output"] = json!({"grid": 16, "reference": {"order": m, "resolution": 128}});
                 let j = parse_value(&d, &Limits::default()).unwrap();
                 let o = job::run(&j, &Silent).unwrap();
-                line += &format!(" N={top}: k={:.1e} b={:.1e} |", o.result.metrics.kernel_relative_error.unwrap(), o.result.metrics.radiosity_relative_error.unwrap());
+                line += &format!(
+                    " N={top}: k={:.1e} b={:.1e} |",
+                    o.result.metrics.kernel_relative_error.unwrap(),
+                    o.result.metrics.radiosity_relative_error.unwrap()
+                );
             }
             println!("{line}");
         }

@@ -10,6 +10,9 @@
 //! into the wavelet basis of [`basis`] and thresholds it → [`solve`] iterates → [`metrics`]
 //! measures eq. (5) and (6) → [`job`] gathers the result.
 
+// Numerical loops index several arrays by the same subscript, as the papers' formulas do.
+#![allow(clippy::needless_range_loop)]
+
 pub mod basis;
 pub mod compress;
 pub mod field;

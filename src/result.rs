@@ -77,6 +77,9 @@ pub struct Metrics {
     pub final_residual: f64,
     /// The relative change of B at each sweep.
     pub residual_history: Vec<f64>,
+    /// Evaluations of the kernel K(x, y) that the matrix or the links took.
+    #[serde(default)]
+    pub kernel_evaluations: u64,
     pub energy: EnergyBalance,
 }
 

@@ -46,9 +46,14 @@ fn degenerate_kernel_is_reproduced_exactly_at_order_two() {
         let means = &o.result.surfaces[0].cells;
         for (i, m) in means.iter().enumerate() {
             let (a, b) = (i as f64 / 4.0, (i + 1) as f64 / 4.0);
-            let exact = 1.0 + 21.0 / 23.0 * (b * b - a * a) / (b - a)
+            let exact = 1.0
+                + 21.0 / 23.0 * (b * b - a * a) / (b - a)
                 + 22.0 / 23.0 * (b * b * b - a * a * a) / (b - a);
-            assert!((m[0] - exact).abs() < 1e-12, "n={n} cell {i}: {} vs {exact}", m[0]);
+            assert!(
+                (m[0] - exact).abs() < 1e-12,
+                "n={n} cell {i}: {} vs {exact}",
+                m[0]
+            );
         }
     }
     for n in [1, 2, 4, 8, 16, 32, 64] {
@@ -65,7 +70,10 @@ fn lower_orders_converge_at_the_predicted_rate() {
             let e = radiosity_error(&run(degenerate(order, n, "scaling")));
             if let Some(p) = prev {
                 let observed = (p / e).log2();
-                assert!((observed - rate).abs() < 0.1, "m={order} n={n}: order {observed}");
+                assert!(
+                    (observed - rate).abs() < 0.1,
+                    "m={order} n={n}: order {observed}"
+                );
             }
             prev = Some(e);
         }
@@ -79,7 +87,12 @@ fn lower_orders_converge_at_the_predicted_rate() {
 /// A square room of four inward-facing walls: K integrates to 1 over the room from every point,
 /// so B = E / (1 − ρ) exactly.
 fn furnace(order: usize, n: usize, basis: &str) -> Value {
-    let walls = [[[0.0, 0.0], [1.0, 0.0]], [[1.0, 0.0], [1.0, 1.0]], [[1.0, 1.0], [0.0, 1.0]], [[0.0, 1.0], [0.0, 0.0]]];
+    let walls = [
+        [[0.0, 0.0], [1.0, 0.0]],
+        [[1.0, 0.0], [1.0, 1.0]],
+        [[1.0, 1.0], [0.0, 1.0]],
+        [[0.0, 1.0], [0.0, 0.0]],
+    ];
     let surfaces: Vec<Value> = walls
         .iter()
         .enumerate()
@@ -93,7 +106,12 @@ fn furnace(order: usize, n: usize, basis: &str) -> Value {
 #[test]
 fn flatland_furnace_gives_e_over_one_minus_rho() {
     let want = [2.0, 4.0 / 3.0, 4.0];
-    for (order, n, basis) in [(0, 16, "wavelet"), (1, 8, "scaling"), (2, 64, "wavelet"), (3, 4, "wavelet")] {
+    for (order, n, basis) in [
+        (0, 16, "wavelet"),
+        (1, 8, "scaling"),
+        (2, 64, "wavelet"),
+        (3, 4, "wavelet"),
+    ] {
         let o = run(furnace(order, n, basis));
         let mut worst: f64 = 0.0;
         for s in &o.result.surfaces {
@@ -103,7 +121,10 @@ fn flatland_furnace_gives_e_over_one_minus_rho() {
                 }
             }
         }
-        assert!(worst < 1e-6, "m={order} n={n}: worst relative error {worst:e}");
+        assert!(
+            worst < 1e-6,
+            "m={order} n={n}: worst relative error {worst:e}"
+        );
         for ch in 0..3 {
             let balance = o.result.metrics.energy.balance[ch];
             assert!((balance - 1.0).abs() < 1e-6, "energy balance {balance}");
@@ -134,12 +155,21 @@ fn form_factors_match_crossed_strings() {
             {"name": "b", "segment": b, "reflectance": 0.5}]},
             "solver": {"order": 0, "resolution": 1, "basis": "scaling"}});
         let j = job(doc);
-        let disc = Discretization { order: 0, cells: 1, quadrature: 2 };
+        let disc = Discretization {
+            order: 0,
+            cells: 1,
+            quadrature: 2,
+        };
         let sys = projection::build(&j, disc, &Silent).unwrap();
         let (la, lb) = (sys.measure[0], sys.measure[1]);
         let f_ab = sys.matrix.get(0, 1) * (lb / la).sqrt();
         let f_ba = sys.matrix.get(1, 0) * (la / lb).sqrt();
-        let want = crossed_strings(V2::from(a[0]), V2::from(a[1]), V2::from(b[0]), V2::from(b[1]));
+        let want = crossed_strings(
+            V2::from(a[0]),
+            V2::from(a[1]),
+            V2::from(b[0]),
+            V2::from(b[1]),
+        );
         assert!((f_ab - want).abs() < 1e-8, "{a:?} {b:?}: {f_ab} vs {want}");
         // reciprocity: L_a F_ab = L_b F_ba
         assert!((la * f_ab - lb * f_ba).abs() < 1e-10);
@@ -165,7 +195,11 @@ fn occluded_form_factor_matches_strings_wrapped_around_the_blocker() {
         surfaces.extend(blockers);
         let j = job(json!({"scene": {"kind": "flatland", "surfaces": surfaces}}));
         for cells in [1, 3, 8] {
-            let disc = Discretization { order: 0, cells, quadrature: 2 };
+            let disc = Discretization {
+                order: 0,
+                cells,
+                quadrature: 2,
+            };
             let sys = projection::build(&j, disc, &Silent).unwrap();
             // ∫∫K = Σ_ab K_ab √(h L_a) √(h L_b)
             let h = 1.0 / cells as f64;
@@ -176,7 +210,10 @@ fn occluded_form_factor_matches_strings_wrapped_around_the_blocker() {
                 }
             }
             let want = 2.0 * 0.34f64.sqrt() - 1.0;
-            assert!((total - want).abs() < 1e-9, "cells={cells}: {total} vs {want}");
+            assert!(
+                (total - want).abs() < 1e-9,
+                "cells={cells}: {total} vs {want}"
+            );
         }
     }
 }
@@ -190,8 +227,17 @@ fn with_solver(doc: &Value, solver: Value, output: Value) -> Value {
 
 /// Cell means (grid 16, first channel) of a scene at order m and resolution n.
 fn cell_means(doc: &Value, m: usize, n: usize) -> Vec<f64> {
-    let d = with_solver(doc, json!({"order": m, "resolution": n, "tolerance": 1e-13, "max_iterations": 2000}), json!({"grid": 16}));
-    run(d).result.surfaces.iter().flat_map(|s| s.cells.iter().map(|c| c[0])).collect()
+    let d = with_solver(
+        doc,
+        json!({"order": m, "resolution": n, "tolerance": 1e-13, "max_iterations": 2000}),
+        json!({"grid": 16}),
+    );
+    run(d)
+        .result
+        .surfaces
+        .iter()
+        .flat_map(|s| s.cells.iter().map(|c| c[0]))
+        .collect()
 }
 
 fn relative_l2(a: &[f64], b: &[f64]) -> f64 {
@@ -203,18 +249,28 @@ fn relative_l2(a: &[f64], b: &[f64]) -> f64 {
 /// the accuracy targets at m = 2, n = 64 against a much finer solve (m = 4, n = 128).
 #[test]
 fn flatland_scenes_converge() {
-    for (name, target) in [("flatland-parallel", 1e-4), ("flatland-perpendicular", 1e-4), ("flatland-occluded", 1e-3)] {
+    for (name, target) in [
+        ("flatland-parallel", 1e-4),
+        ("flatland-perpendicular", 1e-4),
+        ("flatland-occluded", 1e-3),
+    ] {
         let doc = scene_file(name);
         let reference = cell_means(&doc, 4, 128);
         let err = |m, n| relative_l2(&cell_means(&doc, m, n), &reference);
         for m in 0..=2 {
             let errs: Vec<f64> = [4, 8, 16, 32].iter().map(|&n| err(m, n)).collect();
-            assert!(errs.windows(2).all(|w| w[1] < 0.6 * w[0]), "{name} m={m}: {errs:?}");
+            assert!(
+                errs.windows(2).all(|w| w[1] < 0.6 * w[0]),
+                "{name} m={m}: {errs:?}"
+            );
         }
         let by_order: Vec<f64> = (0..=3).map(|m| err(m, 16)).collect();
         // smooth scenes gain a lot per order; the shadow's kinks limit the occluded one
         let gain = if name.contains("occluded") { 0.5 } else { 0.2 };
-        assert!(by_order.windows(2).all(|w| w[1] < gain * w[0]), "{name}: {by_order:?}");
+        assert!(
+            by_order.windows(2).all(|w| w[1] < gain * w[0]),
+            "{name}: {by_order:?}"
+        );
         let e = err(2, 64);
         assert!(e <= target, "{name}: m=2 n=64 error {e:e} above {target:e}");
     }
@@ -223,15 +279,38 @@ fn flatland_scenes_converge() {
 /// The occluder casts a shadow: the top plate is darker above it than at its ends.
 #[test]
 fn occluder_shows_its_shadow() {
-    let o = run(with_solver(&scene_file("flatland-occluded"), json!({"order": 2, "resolution": 32}), json!({"grid": 16})));
+    let o = run(with_solver(
+        &scene_file("flatland-occluded"),
+        json!({"order": 2, "resolution": 32}),
+        json!({"grid": 16}),
+    ));
     let top = &o.result.surfaces[1].cells;
-    let open = run(with_solver(&scene_file("flatland-parallel"), json!({"order": 2, "resolution": 32}), json!({"grid": 16})));
+    let open = run(with_solver(
+        &scene_file("flatland-parallel"),
+        json!({"order": 2, "resolution": 32}),
+        json!({"grid": 16}),
+    ));
     let top_open = &open.result.surfaces[1].cells;
     // the middle of the top plate loses most of its direct light
-    assert!(top[8][0] < 0.6 * top_open[8][0], "{} vs {}", top[8][0], top_open[8][0]);
+    assert!(
+        top[8][0] < 0.6 * top_open[8][0],
+        "{} vs {}",
+        top[8][0],
+        top_open[8][0]
+    );
     // its ends, which see the bottom past the blocker, much less so
-    assert!(top[0][0] > 1.5 * top[8][0], "{} vs {}", top[0][0], top[8][0]);
-    assert!(top[0][0] > 0.7 * top_open[0][0], "{} vs {}", top[0][0], top_open[0][0]);
+    assert!(
+        top[0][0] > 1.5 * top[8][0],
+        "{} vs {}",
+        top[0][0],
+        top[8][0]
+    );
+    assert!(
+        top[0][0] > 0.7 * top_open[0][0],
+        "{} vs {}",
+        top[0][0],
+        top_open[0][0]
+    );
 }
 
 fn kernel_error(doc: &Value, m: usize, basis: &str, top: usize) -> (f64, f64) {
@@ -241,7 +320,10 @@ fn kernel_error(doc: &Value, m: usize, basis: &str, top: usize) -> (f64, f64) {
         json!({"reference": {"order": m, "resolution": 128}}),
     );
     let o = run(d);
-    (o.result.metrics.kernel_relative_error.unwrap(), o.result.metrics.radiosity_relative_error.unwrap())
+    (
+        o.result.metrics.kernel_relative_error.unwrap(),
+        o.result.metrics.radiosity_relative_error.unwrap(),
+    )
 }
 
 /// The slides' sparsity plots as numbers: at n = 64 the wavelet basis reaches with N kept
@@ -254,10 +336,19 @@ fn wavelets_make_the_kernel_sparse() {
         for m in [1, 2] {
             let (wavelet, _) = kernel_error(&doc, m, "wavelet", 256);
             let (scaling, _) = kernel_error(&doc, m, "scaling", 16 * 256);
-            assert!(wavelet < scaling, "{name} m={m}: wavelet {wavelet:e}, scaling (16×) {scaling:e}");
-            let errs: Vec<(f64, f64)> = [64, 256, 1024].iter().map(|&n| kernel_error(&doc, m, "wavelet", n)).collect();
+            assert!(
+                wavelet < scaling,
+                "{name} m={m}: wavelet {wavelet:e}, scaling (16×) {scaling:e}"
+            );
+            let errs: Vec<(f64, f64)> = [64, 256, 1024]
+                .iter()
+                .map(|&n| kernel_error(&doc, m, "wavelet", n))
+                .collect();
             for w in errs.windows(2) {
-                assert!(w[1].0 < 0.2 * w[0].0 && w[1].1 < 0.2 * w[0].1, "{name} m={m}: {errs:?}");
+                assert!(
+                    w[1].0 < 0.2 * w[0].0 && w[1].1 < 0.2 * w[0].1,
+                    "{name} m={m}: {errs:?}"
+                );
             }
         }
     }

@@ -16,7 +16,7 @@ use crate::quadrature::Rule;
 use crate::scene::Segment;
 use crate::visibility::{may_block, visible_from, Pieces};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 /// Deepest bisection of a near-singular pair: 2⁻⁴⁰ of a cell.
 const MAX_DEPTH: u32 = 40;
@@ -123,7 +123,7 @@ pub fn build(
     progress: &dyn Progress,
 ) -> Result<System, Cancelled> {
     let geo = Geometry::new(segments);
-    let matrix = matrix(&geo, disc, progress)?;
+    let (matrix, kernel_evaluations) = matrix(&geo, disc, progress)?;
     let k = disc.order + 1;
     let layout = Layout::Line {
         cells: disc.cells,
@@ -141,6 +141,7 @@ pub fn build(
         reflectance: segments.iter().map(|s| s.material.reflectance).collect(),
         measure: geo.lines.iter().map(|l| l.len).collect(),
         touching: geo.touching(),
+        kernel_evaluations,
     })
 }
 
@@ -169,19 +170,21 @@ fn emission_coefficients(s: &Segment, len: f64, disc: Discretization) -> Vec<[f6
     out
 }
 
-/// The ρ-free Galerkin matrix, rows in parallel.
+/// The ρ-free Galerkin matrix and the number of kernel evaluations it took.
 pub fn matrix(
     geo: &Geometry,
     disc: Discretization,
     progress: &dyn Progress,
-) -> Result<Dense, Cancelled> {
+) -> Result<(Dense, u64), Cancelled> {
     let k = disc.order + 1;
     assert!(k <= MAX_K, "order {} above {}", disc.order, MAX_K - 1);
     let per = disc.cells * k;
     let n = geo.lines.len() * per;
     let mut m = Dense::zeros(n);
     let done = AtomicUsize::new(0);
+    let evaluations = AtomicU64::new(0);
     let blocks = geo.lines.len() * disc.cells;
+    let tables = FastTables::new(geo, disc);
     progress.report(Phase::Projection, 0.0);
     m.data
         .par_chunks_mut(k * n)
@@ -190,6 +193,7 @@ pub fn matrix(
             progress.check()?;
             let (i, a) = (row_block / disc.cells, row_block % disc.cells);
             let mut block = [0.0; MAX_K * MAX_K];
+            let mut evals = 0;
             for j in 0..geo.lines.len() {
                 if i == j {
                     continue;
@@ -200,21 +204,182 @@ pub fn matrix(
                 };
                 for b in 0..disc.cells {
                     block[..k * k].fill(0.0);
-                    let ctx = CellPair::new(geo, disc, i, a, j, b, pair);
-                    ctx.integrate(fi, fj, &mut block[..k * k]);
+                    evals += match tables.fast_points(geo, pair, i, a, j, b) {
+                        Some(q) => tables.tensor(geo, (i, a), (j, b), q, &mut block[..k * k]),
+                        None => CellPair::new(geo, disc, i, a, j, b, pair).integrate(
+                            fi,
+                            fj,
+                            &mut block[..k * k],
+                        ),
+                    };
                     for p in 0..k {
                         let dst = &mut rows[p * n + j * per + b * k..p * n + j * per + b * k + k];
                         dst.copy_from_slice(&block[p * k..p * k + k]);
                     }
                 }
             }
+            evaluations.fetch_add(evals, Ordering::Relaxed);
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             if d % 16 == 0 || d == blocks {
                 progress.report(Phase::Projection, d as f64 / blocks as f64);
             }
             Ok::<(), Cancelled>(())
         })?;
-    Ok(m)
+    Ok((m, evaluations.into_inner()))
+}
+
+/// The fast path of the fill: for well-separated, unoccluded cell pairs entirely in front of
+/// each other (most pairs of most scenes), Gauss nodes and weighted basis values are tabulated
+/// once per surface and rule, so a pair costs its q² kernel evaluations and little else.
+/// Everything else goes through [`CellPair`].
+struct FastTables {
+    k: usize,
+    cells: usize,
+    h: f64,
+    q_min: usize,
+    /// For each rule size q (index q − q_min): per surface, `cells × q` points and
+    /// `cells × q × k` basis values times weights.
+    points: Vec<Vec<Vec<V2>>>,
+    phi: Vec<Vec<Vec<f64>>>,
+    /// Cell midpoints per surface.
+    mids: Vec<Vec<V2>>,
+    /// `ratios[t]`: the smallest distance / size at which rule q_min + t is accurate enough.
+    ratios: Vec<f64>,
+}
+
+/// Largest rule on the fast path; closer pairs (needing more points) take the careful path.
+const FAST_MAX_Q: usize = 12;
+
+impl FastTables {
+    fn new(geo: &Geometry, disc: Discretization) -> FastTables {
+        let k = disc.order + 1;
+        let h = 1.0 / disc.cells as f64;
+        let q_min = disc.quadrature.clamp(1, FAST_MAX_Q);
+        let mut points = Vec::new();
+        let mut phi = Vec::new();
+        for q in q_min..=FAST_MAX_Q {
+            let rule = Rule::gauss(q);
+            let mut pts_q = Vec::new();
+            let mut phi_q = Vec::new();
+            for line in &geo.lines {
+                let mut pts = Vec::with_capacity(disc.cells * q);
+                let mut ph = vec![0.0; disc.cells * q * k];
+                for c in 0..disc.cells {
+                    for (a, (x, w)) in rule.mapped(0.0, 1.0).enumerate() {
+                        pts.push(line.at((c as f64 + x) * h));
+                        let at = (c * q + a) * k;
+                        legendre(x, &mut ph[at..at + k]);
+                        ph[at..at + k].iter_mut().for_each(|v| *v *= w * h);
+                    }
+                }
+                pts_q.push(pts);
+                phi_q.push(ph);
+            }
+            points.push(pts_q);
+            phi.push(phi_q);
+        }
+        let mids = geo
+            .lines
+            .iter()
+            .map(|l| {
+                (0..disc.cells)
+                    .map(|c| l.at((c as f64 + 0.5) * h))
+                    .collect()
+            })
+            .collect();
+        // points_for_separation falls as the ratio grows: bisect for each rule's threshold.
+        let ratios = (q_min..=FAST_MAX_Q)
+            .map(|q| {
+                let (mut lo, mut hi) = (1.0f64, 1e9f64);
+                for _ in 0..100 {
+                    let mid = (lo * hi).sqrt();
+                    if points_for_separation(mid, 1.0) <= q {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                hi
+            })
+            .collect();
+        FastTables {
+            ratios,
+            k,
+            cells: disc.cells,
+            h,
+            q_min,
+            points,
+            phi,
+            mids,
+        }
+    }
+
+    /// The rule for cells a (of i) and b (of j) if the pair may take the fast path.
+    fn fast_points(
+        &self,
+        geo: &Geometry,
+        pair: &PairInfo,
+        i: usize,
+        a: usize,
+        j: usize,
+        b: usize,
+    ) -> Option<usize> {
+        if !pair.occluders.is_empty() {
+            return None;
+        }
+        let (fi, fj) = (pair.front_i?, pair.front_j?);
+        let (sa, sb) = (a as f64 * self.h, b as f64 * self.h);
+        if sa < fi[0] || sa + self.h > fi[1] || sb < fj[0] || sb + self.h > fj[1] {
+            return None;
+        }
+        let (la, lb) = (geo.lines[i].len * self.h, geo.lines[j].len * self.h);
+        let size = la.max(lb);
+        // a lower bound of the distance between the two cells
+        let dist = (self.mids[i][a] - self.mids[j][b]).norm() - 0.5 * (la + lb);
+        if dist < size {
+            return None;
+        }
+        let t = self.ratios.iter().position(|&r| dist >= r * size)?;
+        Some(self.q_min + t)
+    }
+
+    /// The q × q rule on cell a of surface i and cell b of surface j, from the tables.
+    fn tensor(
+        &self,
+        geo: &Geometry,
+        (i, a): (usize, usize),
+        (j, b): (usize, usize),
+        q: usize,
+        out: &mut [f64],
+    ) -> u64 {
+        let k = self.k;
+        let t = q - self.q_min;
+        let xs = &self.points[t][i][a * q..(a + 1) * q];
+        let ys = &self.points[t][j][b * q..(b + 1) * q];
+        let pa = &self.phi[t][i][a * q * k..(a + 1) * q * k];
+        let pb = &self.phi[t][j][b * q * k..(b + 1) * q * k];
+        let (ni, nj) = (geo.lines[i].n, geo.lines[j].n);
+        let scale = (geo.lines[i].len * geo.lines[j].len).sqrt() / self.h;
+        let mut tmp = [0.0; MAX_K];
+        for (alpha, &x) in xs.iter().enumerate() {
+            tmp[..k].fill(0.0);
+            for (beta, &y) in ys.iter().enumerate() {
+                let kv = kernel::flatland(x, ni, y, nj);
+                let row = &pb[beta * k..beta * k + k];
+                for r in 0..k {
+                    tmp[r] += kv * row[r];
+                }
+            }
+            for p in 0..k {
+                let f = pa[alpha * k + p] * scale;
+                for r in 0..k {
+                    out[p * k + r] += f * tmp[r];
+                }
+            }
+        }
+        debug_assert_eq!(self.cells * q, self.points[t][i].len());
+        (q * q) as u64
+    }
 }
 
 /// One pair of cells: cell a of surface i (rows) and cell b of surface j (columns).
@@ -269,17 +434,23 @@ impl<'g> CellPair<'g> {
         self
     }
 
-    /// Adds ∫∫ K φ_p φ_r over the cells (restricted to the front ranges) to `out` (k × k).
-    pub fn integrate(&self, front_i: [f64; 2], front_j: [f64; 2], out: &mut [f64]) {
-        let (Some(sa), Some(sb)) = (intersect(self.cell_a, front_i), intersect(self.cell_b, front_j))
-        else {
-            return;
+    /// Adds ∫∫ K φ_p φ_r over the cells (restricted to the front ranges) to `out` (k × k);
+    /// returns the number of kernel evaluations.
+    pub fn integrate(&self, front_i: [f64; 2], front_j: [f64; 2], out: &mut [f64]) -> u64 {
+        let (Some(sa), Some(sb)) = (
+            intersect(self.cell_a, front_i),
+            intersect(self.cell_b, front_j),
+        ) else {
+            return 0;
         };
-        self.sub(sa, sb, 0, out);
+        self.sub(sa, sb, 0, out)
     }
 
-    fn sub(&self, sa: [f64; 2], sb: [f64; 2], depth: u32, out: &mut [f64]) {
-        let (pa, pb) = ([self.li.at(sa[0]), self.li.at(sa[1])], [self.lj.at(sb[0]), self.lj.at(sb[1])]);
+    fn sub(&self, sa: [f64; 2], sb: [f64; 2], depth: u32, out: &mut [f64]) -> u64 {
+        let (pa, pb) = (
+            [self.li.at(sa[0]), self.li.at(sa[1])],
+            [self.lj.at(sb[0]), self.lj.at(sb[1])],
+        );
         let la = self.li.len * (sa[1] - sa[0]);
         let lb = self.lj.len * (sb[1] - sb[0]);
         let size = la.max(lb);
@@ -298,17 +469,17 @@ impl<'g> CellPair<'g> {
             } else {
                 (halves_a, halves_b)
             };
+            let mut evals = 0;
             for &x in ra {
                 for &y in rb {
-                    self.sub(x, y, depth + 1, out);
+                    evals += self.sub(x, y, depth + 1, out);
                 }
             }
-            return;
+            return evals;
         }
         let q = points_for_separation(dist, size).max(self.q_min).min(MAX_Q);
         if self.occluders.is_empty() {
-            self.tensor(sa, sb, q, out);
-            return;
+            return self.tensor(sa, sb, q, out);
         }
         let mut occ: smallvec::SmallVec<[Line; 8]> = smallvec::SmallVec::new();
         for &o in self.occluders {
@@ -318,14 +489,14 @@ impl<'g> CellPair<'g> {
             }
         }
         if occ.is_empty() {
-            self.tensor(sa, sb, q, out);
+            self.tensor(sa, sb, q, out)
         } else {
-            self.occluded(sa, sb, q, &occ, out);
+            self.occluded(sa, sb, q, &occ, out)
         }
     }
 
     /// Unoccluded: the q × q tensor Gauss rule.
-    fn tensor(&self, sa: [f64; 2], sb: [f64; 2], q: usize, out: &mut [f64]) {
+    fn tensor(&self, sa: [f64; 2], sb: [f64; 2], q: usize, out: &mut [f64]) -> u64 {
         let k = self.k;
         let rule = Rule::gauss(q);
         let mut phi_a = [0.0; MAX_Q * MAX_K];
@@ -362,11 +533,13 @@ impl<'g> CellPair<'g> {
                 }
             }
         }
+        (q * q) as u64
     }
 
     /// Occluded: outer pieces between the breakpoints of the shadow topology, inner integral
     /// over the visible pieces of the target.
-    fn occluded(&self, sa: [f64; 2], sb: [f64; 2], q: usize, occ: &[Line], out: &mut [f64]) {
+    fn occluded(&self, sa: [f64; 2], sb: [f64; 2], q: usize, occ: &[Line], out: &mut [f64]) -> u64 {
+        let mut evals = 0;
         let k = self.k;
         let breaks = self.breakpoints(sa, sb, occ);
         let outer = Rule::gauss((q + 2).min(MAX_Q));
@@ -383,6 +556,7 @@ impl<'g> CellPair<'g> {
                 visible_from(x, self.lj, sb, occ, &mut pieces);
                 tmp[..k].fill(0.0);
                 for piece in &pieces {
+                    evals += inner.len() as u64;
                     for (t, wt) in inner.mapped(piece[0], piece[1]) {
                         let mut kv = kernel::flatland(x, self.li.n, self.lj.at(t), self.lj.n);
                         if self.squared {
@@ -404,13 +578,19 @@ impl<'g> CellPair<'g> {
                 }
             }
         }
+        evals
     }
 
     /// Parameters of surface i inside `sa` where the visible pieces of `sb` change their form:
     /// where x lines up with two of the fixed points (occluder ends, occluder crossings of the
     /// target line, ends of the target range), and where x's distance to the target line equals
     /// an occluder end's.
-    fn breakpoints(&self, sa: [f64; 2], sb: [f64; 2], occ: &[Line]) -> smallvec::SmallVec<[f64; 32]> {
+    fn breakpoints(
+        &self,
+        sa: [f64; 2],
+        sb: [f64; 2],
+        occ: &[Line],
+    ) -> smallvec::SmallVec<[f64; 32]> {
         let mut fixed: smallvec::SmallVec<[V2; 16]> = smallvec::SmallVec::new();
         for o in occ {
             fixed.push(o.a);
@@ -474,7 +654,7 @@ pub fn kernel_squares(
             for a in 0..disc.cells {
                 for b in 0..disc.cells {
                     let mut out = [0.0];
-                    CellPair::new(geo, disc, i, a, j, b, pair)
+                    let _evals = CellPair::new(geo, disc, i, a, j, b, pair)
                         .squared()
                         .integrate(fi, fj, &mut out);
                     sum += out[0];

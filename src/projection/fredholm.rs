@@ -8,7 +8,11 @@ use crate::quadrature::Rule;
 use crate::scene::Fredholm;
 use rayon::prelude::*;
 
-pub fn build(f: &Fredholm, disc: Discretization, progress: &dyn Progress) -> Result<System, Cancelled> {
+pub fn build(
+    f: &Fredholm,
+    disc: Discretization,
+    progress: &dyn Progress,
+) -> Result<System, Cancelled> {
     let k = disc.order + 1;
     let n = disc.cells;
     let [lo, hi] = f.domain;
@@ -82,5 +86,6 @@ pub fn build(f: &Fredholm, disc: Discretization, progress: &dyn Progress) -> Res
         reflectance: vec![[1.0; 3]],
         measure: vec![len],
         touching: Vec::new(),
+        kernel_evaluations: (n * n * q * q) as u64,
     })
 }

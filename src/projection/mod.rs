@@ -95,6 +95,8 @@ pub struct System {
     pub measure: Vec<f64>,
     /// Pairs of surfaces (i < j) that touch: ∫∫K² diverges there, so eq. (5) leaves them out.
     pub touching: Vec<(usize, usize)>,
+    /// Kernel evaluations the matrix took.
+    pub kernel_evaluations: u64,
 }
 
 impl System {

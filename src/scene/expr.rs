@@ -7,7 +7,8 @@ use exmex::{Express, FlatEx};
 #[derive(Clone)]
 pub struct Expr {
     text: String,
-    flat: FlatEx<f64>,
+    /// Boxed: exmex keeps its nodes in large inline arrays.
+    flat: Box<FlatEx<f64>>,
     /// For each variable of `flat` in its order: 0 for `x`, 1 for `y`.
     slots: [usize; 2],
     arity: usize,
@@ -41,7 +42,7 @@ impl Expr {
         let e = Expr {
             text: text.to_string(),
             arity: names.len(),
-            flat,
+            flat: Box::new(flat),
             slots,
         };
         // Evaluate once so that an expression that cannot be evaluated fails here, not in a solve.
@@ -107,7 +108,9 @@ fn normalize(text: &str, vars: &[&str]) -> Result<String, ExprError> {
             if tail.starts_with(['e', 'E']) {
                 let exp = &tail[1..];
                 let sign = usize::from(exp.starts_with(['+', '-']));
-                let digits = exp[sign..].find(|d: char| !d.is_ascii_digit()).unwrap_or(exp.len() - sign);
+                let digits = exp[sign..]
+                    .find(|d: char| !d.is_ascii_digit())
+                    .unwrap_or(exp.len() - sign);
                 if digits > 0 {
                     len += 1 + sign + digits;
                 }

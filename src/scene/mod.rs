@@ -20,7 +20,11 @@ pub struct FieldError {
 
 impl std::fmt::Display for FieldError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let path = if self.path.is_empty() { "/" } else { &self.path };
+        let path = if self.path.is_empty() {
+            "/"
+        } else {
+            &self.path
+        };
         write!(f, "{path}: {}", self.message)
     }
 }
@@ -61,8 +65,8 @@ impl Default for Limits {
             max_surfaces: 256,
             max_order: 8,
             max_resolution: 1024,
-            // 11_585² × 8 bytes ≈ 1 GiB of dense matrix.
-            max_basis_functions: 11_585,
+            // 8192² entries × 16 bytes (the matrix and its sorted magnitudes) = 1 GiB at peak.
+            max_basis_functions: 8192,
             max_image_pixels: 4096 * 4096,
         }
     }

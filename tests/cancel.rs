@@ -1,0 +1,100 @@
+//! Progress and cancellation through the caller's hook: a cancel takes effect within a second in
+//! every phase of a large job, and progress is reported phase by phase with fractions in [0, 1].
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+use wavrad::job::{self, JobError};
+use wavrad::progress::{Phase, Progress};
+use wavrad::scene::{parse_value, Limits};
+
+struct Recorder {
+    cancel_in: Option<(Phase, f64)>,
+    cancelled: AtomicBool,
+    at: Mutex<Option<Instant>>,
+    seen: Mutex<Vec<(Phase, f64)>>,
+}
+
+impl Progress for Recorder {
+    fn report(&self, phase: Phase, fraction: f64) {
+        self.seen.lock().unwrap().push((phase, fraction));
+        if let Some((p, f)) = self.cancel_in {
+            if p == phase && fraction >= f && !self.cancelled.swap(true, Ordering::SeqCst) {
+                *self.at.lock().unwrap() = Some(Instant::now());
+            }
+        }
+    }
+    fn cancelled(&self) -> bool {
+        self.cancelled.load(Ordering::SeqCst)
+    }
+}
+
+fn big_job() -> wavrad::scene::Job {
+    let doc: serde_json::Value =
+        serde_json::from_str(include_str!("../scenes/flatland-occluded.json")).unwrap();
+    let mut doc = doc;
+    doc["solver"] = serde_json::json!({"order": 2, "resolution": 256, "tolerance": 1e-14, "max_iterations": 100000});
+    parse_value(&doc, &Limits::default()).unwrap()
+}
+
+#[test]
+fn cancel_takes_effect_within_a_second_in_every_phase() {
+    let job = big_job();
+    for (phase, fraction) in [
+        (Phase::Projection, 0.3),
+        (Phase::Transform, 0.0),
+        (Phase::Solve, 0.0),
+    ] {
+        let r = Recorder {
+            cancel_in: Some((phase, fraction)),
+            cancelled: AtomicBool::new(false),
+            at: Mutex::new(None),
+            seen: Mutex::new(vec![]),
+        };
+        let err = job::run(&job, &r).unwrap_err();
+        let waited =
+            r.at.lock()
+                .unwrap()
+                .expect("the cancel point was reached")
+                .elapsed();
+        assert_eq!(err, JobError::Cancelled);
+        assert!(
+            waited < Duration::from_secs(1),
+            "{phase:?}: stopped {waited:?} after the cancel"
+        );
+    }
+}
+
+#[test]
+fn progress_is_reported_in_order() {
+    let doc: serde_json::Value =
+        serde_json::from_str(include_str!("../scenes/flatland-parallel.json")).unwrap();
+    let job = parse_value(&doc, &Limits::default()).unwrap();
+    let r = Recorder {
+        cancel_in: None,
+        cancelled: AtomicBool::new(false),
+        at: Mutex::new(None),
+        seen: Mutex::new(vec![]),
+    };
+    job::run(&job, &r).unwrap();
+    let seen = r.seen.lock().unwrap();
+    assert!(seen.iter().all(|(_, f)| (0.0..=1.0).contains(f)));
+    let phases: Vec<Phase> = seen.iter().map(|s| s.0).fold(vec![], |mut v, p| {
+        if v.last() != Some(&p) {
+            v.push(p);
+        }
+        v
+    });
+    assert_eq!(
+        phases,
+        [
+            Phase::Projection,
+            Phase::Transform,
+            Phase::Solve,
+            Phase::Metrics
+        ]
+    );
+    assert!(seen
+        .iter()
+        .any(|&(p, f)| p == Phase::Projection && f == 1.0));
+}
