@@ -19,7 +19,7 @@ fn sweeps(c: &mut Criterion) {
     };
     let mut system = projection::build(&job, disc, &Silent).unwrap();
     compress::to_wavelet(&mut system, &Silent).unwrap();
-    let sorted = compress::sorted_magnitudes(&system.matrix);
+    let ranking = compress::Ranking::new(&system.matrix.data, &Silent).unwrap();
     let rho: Vec<[f64; 3]> = (0..system.size())
         .map(|i| system.reflectance[system.surface_of(i)])
         .collect();
@@ -31,7 +31,7 @@ fn sweeps(c: &mut Criterion) {
     let mut group = c.benchmark_group("solve_20_sweeps");
     group.sample_size(10);
     for top in [1 << 12, 1 << 14, 1 << 16, 1 << 18, 1 << 20] {
-        let kept = compress::threshold(&system.matrix, Keep::Top(top), &sorted);
+        let kept = compress::threshold(&system.matrix, Keep::Top(top), &ranking);
         group.throughput(Throughput::Elements(20 * kept.csr.nnz() as u64));
         group.bench_with_input(BenchmarkId::new("jacobi", top), &kept, |b, kept| {
             b.iter(|| solve::solve(&kept.csr, &rho, &system.emission, settings, &Silent).unwrap())

@@ -126,38 +126,129 @@ pub struct Kept {
     pub dropped_squares: f64,
 }
 
-/// How many entries of `entries` the rule keeps, and the magnitude at the cut.
-fn cut_of(keep: Keep, sorted_desc: &[f64]) -> (usize, f64) {
-    let nonzero = sorted_desc.partition_point(|&v| v > 0.0);
-    let count = match keep {
-        Keep::All => nonzero,
-        Keep::Top(n) => n.min(nonzero),
-        Keep::Fraction(f) => ((f * sorted_desc.len() as f64).ceil() as usize).min(nonzero),
-        Keep::Threshold(t) => sorted_desc.partition_point(|&v| v >= t && v > 0.0),
-    };
-    let cut = if count == 0 {
-        f64::INFINITY
-    } else {
-        sorted_desc[count - 1]
-    };
-    (count, cut)
+/// The magnitudes of a matrix's entries in decreasing order, without sorting them all: a
+/// histogram of the leading bits of |v| (monotone in |v| for floats) locates any rank's bucket,
+/// and only the buckets that hold the ranks asked for are gathered and sorted. One pass over the
+/// matrix, memory independent of its size, and a cancellation check every few million entries.
+#[derive(Debug, Clone)]
+pub struct Ranking {
+    /// Counts of non-zero magnitudes per bucket (the top bits of `|v|.to_bits()`).
+    buckets: Vec<u64>,
+    zeros: u64,
+    len: usize,
 }
 
-/// Magnitudes of all entries, sorted in decreasing order.
-pub fn sorted_magnitudes(m: &Dense) -> Vec<f64> {
-    let mut mags: Vec<f64> = m.data.par_iter().map(|v| v.abs()).collect();
-    mags.par_sort_unstable_by(|a, b| b.total_cmp(a));
-    mags
+/// Buckets of 1/256 of an octave: the sign bit is clear, so 19 bits of exponent and mantissa.
+const BUCKET_SHIFT: u32 = 44;
+const BUCKETS: usize = 1 << 19;
+const CHUNK: usize = 1 << 22;
+
+#[inline]
+fn bucket_of(v: f64) -> usize {
+    (v.abs().to_bits() >> BUCKET_SHIFT) as usize
 }
 
-/// `count` samples of the sorted magnitudes, evenly spaced in rank: (ranks, magnitudes).
-pub fn sample_ranks(sorted_desc: &[f64], count: usize) -> (Vec<usize>, Vec<f64>) {
-    let len = sorted_desc.len();
+impl Ranking {
+    pub fn new(values: &[f64], progress: &dyn Progress) -> Result<Ranking, Cancelled> {
+        let (buckets, zeros) = values
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                progress.check()?;
+                let mut h = vec![0u64; BUCKETS];
+                let mut z = 0u64;
+                for &v in chunk {
+                    if v == 0.0 {
+                        z += 1;
+                    } else {
+                        h[bucket_of(v)] += 1;
+                    }
+                }
+                Ok((h, z))
+            })
+            .try_reduce(
+                || (vec![0u64; BUCKETS], 0),
+                |(mut a, za), (b, zb)| {
+                    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                    Ok((a, za + zb))
+                },
+            )?;
+        Ok(Ranking {
+            buckets,
+            zeros,
+            len: values.len(),
+        })
+    }
+
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    pub fn nonzero(&self) -> usize {
+        self.len - self.zeros as usize
+    }
+
+    /// For each rank (0 = largest), the magnitude there and the first rank holding that same
+    /// magnitude. `values` must be the slice the ranking was built from.
+    pub fn locate(&self, values: &[f64], ranks: &[usize]) -> Vec<(f64, usize)> {
+        // bucket and the rank of its first (largest) element, for every non-zero rank asked
+        let mut wanted = vec![false; BUCKETS];
+        let mut places = Vec::with_capacity(ranks.len());
+        for &r in ranks {
+            if r >= self.nonzero() {
+                places.push(None);
+                continue;
+            }
+            let mut seen = 0usize;
+            let mut b = BUCKETS;
+            while b > 0 {
+                b -= 1;
+                let c = self.buckets[b] as usize;
+                if r < seen + c {
+                    break;
+                }
+                seen += c;
+            }
+            wanted[b] = true;
+            places.push(Some((b, seen)));
+        }
+        let mut gathered: Vec<(usize, f64)> = values
+            .par_chunks(CHUNK)
+            .flat_map_iter(|chunk| {
+                chunk
+                    .iter()
+                    .filter(|v| **v != 0.0 && wanted[bucket_of(**v)])
+                    .map(|v| (bucket_of(*v), v.abs()))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        gathered.par_sort_unstable_by(|a, b| b.0.cmp(&a.0).then(b.1.total_cmp(&a.1)));
+        ranks
+            .iter()
+            .zip(places)
+            .map(|(&r, place)| match place {
+                None => (0.0, self.nonzero()),
+                Some((b, first)) => {
+                    let start = gathered.partition_point(|g| g.0 > b);
+                    let v = gathered[start + (r - first)].1;
+                    let eq = gathered[start..].partition_point(|g| g.0 == b && g.1 > v);
+                    (v, first + eq)
+                }
+            })
+            .collect()
+    }
+}
+
+/// `count` ranks evenly spaced from the largest to the smallest entry.
+pub fn sample_ranks(len: usize, count: usize) -> Vec<usize> {
     if len == 0 || count == 0 {
-        return (vec![], vec![]);
+        return vec![];
     }
     let count = count.min(len);
-    let ranks: Vec<usize> = (0..count)
+    (0..count)
         .map(|i| {
             if count == 1 {
                 0
@@ -165,38 +256,49 @@ pub fn sample_ranks(sorted_desc: &[f64], count: usize) -> (Vec<usize>, Vec<f64>)
                 ((i as f64) * (len - 1) as f64 / (count - 1) as f64).round() as usize
             }
         })
-        .collect();
-    let mags = ranks.iter().map(|&r| sorted_desc[r]).collect();
-    (ranks, mags)
+        .collect()
 }
 
 /// Keeps what `keep` asks for, in row order; ties at the cut are kept in row-major order until
 /// the count is reached, so the result is deterministic.
-pub fn threshold(m: &Dense, keep: Keep, sorted_desc: &[f64]) -> Kept {
-    let (count, cut) = cut_of(keep, sorted_desc);
-    // entries strictly above the cut are all kept; those equal to it fill up the count
-    let above = sorted_desc.partition_point(|&v| v > cut);
+pub fn threshold(m: &Dense, keep: Keep, ranking: &Ranking) -> Kept {
+    let nonzero = ranking.nonzero();
+    let count = match keep {
+        Keep::All | Keep::Threshold(_) => nonzero,
+        Keep::Top(n) => n.min(nonzero),
+        Keep::Fraction(f) => ((f * ranking.len() as f64).ceil() as usize).min(nonzero),
+    };
+    // (cut, entries strictly above it): keep |v| > cut, and |v| == cut while ties are left
+    let (cut, above) = match keep {
+        Keep::Threshold(t) => (t, 0),
+        _ if count == 0 => (f64::INFINITY, 0),
+        _ => ranking.locate(&m.data, &[count - 1])[0],
+    };
+    let threshold_rule = matches!(keep, Keep::Threshold(_));
     let mut ties_left = count.saturating_sub(above);
     let n = m.n;
     let mut csr = Csr {
         n,
         row_ptr: Vec::with_capacity(n + 1),
-        cols: Vec::with_capacity(count),
-        vals: Vec::with_capacity(count),
+        cols: Vec::new(),
+        vals: Vec::new(),
     };
     let mut dropped = 0.0;
+    let mut smallest = f64::INFINITY;
     csr.row_ptr.push(0);
     for i in 0..n {
         for (j, &v) in m.row(i).iter().enumerate() {
             let a = v.abs();
-            let keep_it = a > cut
-                || (a == cut && a > 0.0 && ties_left > 0 && {
-                    ties_left -= 1;
-                    true
-                });
+            let keep_it = a > 0.0
+                && (a > cut
+                    || (a == cut && (threshold_rule || ties_left > 0) && {
+                        ties_left = ties_left.saturating_sub(1);
+                        true
+                    }));
             if keep_it {
                 csr.cols.push(j as u32);
                 csr.vals.push(v);
+                smallest = smallest.min(a);
             } else {
                 dropped += v * v;
             }
@@ -204,12 +306,12 @@ pub fn threshold(m: &Dense, keep: Keep, sorted_desc: &[f64]) -> Kept {
         csr.row_ptr.push(csr.vals.len());
     }
     Kept {
-        csr,
-        cut: if matches!(keep, Keep::All) || count == 0 {
+        cut: if matches!(keep, Keep::All) || csr.vals.is_empty() {
             0.0
         } else {
-            cut
+            smallest
         },
+        csr,
         dropped_squares: dropped,
     }
 }
@@ -249,6 +351,7 @@ pub fn picture(m: &Dense, max_side: usize, cut: f64) -> MagnitudePicture {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::progress::Silent;
 
     fn sample() -> Dense {
         let mut m = Dense::zeros(3);
@@ -259,8 +362,14 @@ mod tests {
     #[test]
     fn keeps_top_fraction_and_threshold() {
         let m = sample();
-        let sorted = sorted_magnitudes(&m);
-        assert_eq!(sorted[..4], [4.0, 3.0, 2.0, 2.0]);
+        let sorted = Ranking::new(&m.data, &Silent).unwrap();
+        let top4: Vec<f64> = sorted
+            .locate(&m.data, &[0, 1, 2, 3, 8])
+            .iter()
+            .map(|x| x.0)
+            .collect();
+        assert_eq!(top4, [4.0, 3.0, 2.0, 2.0, 0.0]);
+        assert_eq!(sorted.locate(&m.data, &[3])[0], (2.0, 2));
         let k = threshold(&m, Keep::Top(3), &sorted);
         assert_eq!(k.csr.nnz(), 3);
         assert_eq!(k.cut, 2.0);
@@ -277,10 +386,41 @@ mod tests {
 
     #[test]
     fn rank_samples_include_both_ends() {
-        let sorted: Vec<f64> = (0..10).rev().map(|x| x as f64).collect();
-        let (r, v) = sample_ranks(&sorted, 4);
-        assert_eq!(r, [0, 3, 6, 9]);
-        assert_eq!(v, [9.0, 6.0, 3.0, 0.0]);
+        assert_eq!(sample_ranks(10, 4), [0, 3, 6, 9]);
+        assert_eq!(sample_ranks(10, 1), [0]);
+        assert!(sample_ranks(0, 4).is_empty());
+    }
+
+    /// The ranking agrees with a full sort on values that share buckets and tie.
+    #[test]
+    fn ranking_matches_a_full_sort() {
+        let mut s = 7u64;
+        let values: Vec<f64> = (0..50_000)
+            .map(|i| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let x = ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 10f64.powi((i % 17) - 8);
+                if i % 11 == 0 {
+                    0.0
+                } else if i % 13 == 0 {
+                    0.25
+                } else {
+                    x
+                }
+            })
+            .collect();
+        let mut sorted: Vec<f64> = values.iter().map(|v| v.abs()).collect();
+        sorted.sort_by(|a, b| b.total_cmp(a));
+        let r = Ranking::new(&values, &Silent).unwrap();
+        let ranks: Vec<usize> = (0..values.len())
+            .step_by(97)
+            .chain([values.len() - 1])
+            .collect();
+        for ((v, first), &rank) in r.locate(&values, &ranks).iter().zip(&ranks) {
+            assert_eq!(*v, sorted[rank]);
+            assert_eq!(*first, sorted.partition_point(|x| x > v));
+        }
     }
 
     #[test]

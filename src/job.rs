@@ -59,7 +59,8 @@ pub struct Solution {
     pub matrix_entries: usize,
     pub kept_entries: usize,
     pub cut: f64,
-    pub sorted: Vec<f64>,
+    /// Sampled sorted magnitudes of the matrix: (rank, magnitude), decreasing.
+    pub magnitudes: Vec<(usize, f64)>,
     pub picture: Option<MagnitudePicture>,
     pub solved: Solved,
     /// Eq. (5) and the surface pairs it left out.
@@ -130,8 +131,7 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
             cells: f.cell_means(job.output.grid),
         })
         .collect();
-    let (sorted_ranks, sorted_magnitudes) =
-        compress::sample_ranks(&sol.sorted, job.output.coefficients);
+    let (sorted_ranks, sorted_magnitudes) = sol.magnitudes.iter().copied().unzip();
     sol.timings.insert("total".into(), ms(start));
     let result = JobResult {
         scene: job.scene.name.clone(),
@@ -232,8 +232,19 @@ pub fn projection_solve(
     timings.insert("transform".into(), ms(t));
     let t = Instant::now();
     progress.check()?;
-    let sorted = compress::sorted_magnitudes(&system.matrix);
-    let Kept { csr, cut, .. } = compress::threshold(&system.matrix, keep, &sorted);
+    let ranking = compress::Ranking::new(&system.matrix.data, progress)?;
+    let ranks = compress::sample_ranks(ranking.len(), job.output.coefficients);
+    let magnitudes = ranks
+        .iter()
+        .copied()
+        .zip(
+            ranking
+                .locate(&system.matrix.data, &ranks)
+                .into_iter()
+                .map(|x| x.0),
+        )
+        .collect();
+    let Kept { csr, cut, .. } = compress::threshold(&system.matrix, keep, &ranking);
     let picture = compress::picture(&system.matrix, 512, cut);
     let per = layout.len();
     let s = system.surfaces;
@@ -280,7 +291,7 @@ pub fn projection_solve(
         matrix_entries,
         kept_entries,
         cut,
-        sorted,
+        magnitudes,
         picture: Some(picture),
         solved,
         kernel_error: None,

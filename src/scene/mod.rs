@@ -65,8 +65,8 @@ impl Default for Limits {
             max_surfaces: 256,
             max_order: 8,
             max_resolution: 1024,
-            // 8192² entries × 16 bytes (the matrix and its sorted magnitudes) = 1 GiB at peak.
-            max_basis_functions: 8192,
+            // 11_585² entries × 8 bytes ≈ 1 GiB of dense matrix.
+            max_basis_functions: 11_585,
             max_image_pixels: 4096 * 4096,
         }
     }
