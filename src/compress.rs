@@ -116,6 +116,24 @@ impl Csr {
     }
 }
 
+/// What thresholding kept: a sparse matrix, or the dense one with the dropped entries zeroed
+/// when more than a third of the entries are kept (a CSR copy would then cost more memory than
+/// the dense matrix it came from).
+#[derive(Debug, Clone)]
+pub enum KeptMatrix {
+    Sparse(Csr),
+    Dense(Dense),
+}
+
+impl KeptMatrix {
+    pub fn operator(&self) -> &dyn crate::solve::Operator {
+        match self {
+            KeptMatrix::Sparse(c) => c,
+            KeptMatrix::Dense(d) => d,
+        }
+    }
+}
+
 /// What thresholding kept.
 #[derive(Debug, Clone)]
 pub struct Kept {
@@ -259,23 +277,124 @@ pub fn sample_ranks(len: usize, count: usize) -> Vec<usize> {
         .collect()
 }
 
-/// Keeps what `keep` asks for, in row order; ties at the cut are kept in row-major order until
-/// the count is reached, so the result is deterministic.
+/// Which entries a keep rule keeps, decided entry by entry in row-major order: every |v| above
+/// the cut, and entries at the cut while ties are left (all of them for a threshold rule), so
+/// the selection is deterministic.
+struct Selector {
+    cut: f64,
+    inclusive: bool,
+    ties_left: usize,
+    /// How many entries will be kept (for a threshold rule: at most this many).
+    count: usize,
+}
+
+impl Selector {
+    fn new(m: &Dense, keep: Keep, ranking: &Ranking) -> Selector {
+        let nonzero = ranking.nonzero();
+        let count = match keep {
+            Keep::All | Keep::Threshold(_) => nonzero,
+            Keep::Top(n) => n.min(nonzero),
+            Keep::Fraction(f) => ((f * ranking.len() as f64).ceil() as usize).min(nonzero),
+        };
+        let (cut, above) = match keep {
+            Keep::Threshold(t) => (t, 0),
+            _ if count == 0 => (f64::INFINITY, 0),
+            _ => ranking.locate(&m.data, &[count - 1])[0],
+        };
+        let inclusive = matches!(keep, Keep::Threshold(_));
+        let count = match keep {
+            // entries ≥ t: the first rank below t
+            Keep::Threshold(t) => m
+                .data
+                .par_iter()
+                .filter(|v| v.abs() >= t && **v != 0.0)
+                .count(),
+            _ => count,
+        };
+        Selector {
+            cut,
+            inclusive,
+            ties_left: count.saturating_sub(above),
+            count,
+        }
+    }
+
+    #[inline]
+    fn keeps(&mut self, v: f64) -> bool {
+        let a = v.abs();
+        if a == 0.0 || a < self.cut {
+            return false;
+        }
+        if a > self.cut || self.inclusive {
+            return true;
+        }
+        if self.ties_left > 0 {
+            self.ties_left -= 1;
+            return true;
+        }
+        false
+    }
+}
+
+/// Keeps what `keep` asks for, consuming the dense matrix: sparse when at most a third of the
+/// entries survive, else the dense matrix itself with the dropped entries set to zero (a sparse
+/// copy would then cost more memory than the matrix). Also returns the number of entries kept,
+/// the smallest magnitude kept, and Σ K_ij² of the kept entries per block of surfaces
+/// (`S × S` for blocks of `per` rows and columns).
+pub fn keep_entries(
+    mut m: Dense,
+    keep: Keep,
+    ranking: &Ranking,
+    per: usize,
+) -> (KeptMatrix, usize, f64, Vec<f64>) {
+    let mut sel = Selector::new(&m, keep, ranking);
+    let dense = 3 * sel.count > m.n * m.n;
+    let blocks = m.n / per.max(1);
+    let mut squares = vec![0.0; blocks * blocks];
+    let mut smallest = f64::INFINITY;
+    let mut count = 0;
+    let n = m.n;
+    let mut csr = Csr {
+        n,
+        row_ptr: vec![0],
+        cols: Vec::new(),
+        vals: Vec::new(),
+    };
+    for i in 0..n {
+        let row = &mut m.data[i * n..(i + 1) * n];
+        for (j, v) in row.iter_mut().enumerate() {
+            if sel.keeps(*v) {
+                squares[(i / per) * blocks + j / per] += *v * *v;
+                smallest = smallest.min(v.abs());
+                count += 1;
+                if !dense {
+                    csr.cols.push(j as u32);
+                    csr.vals.push(*v);
+                }
+            } else {
+                *v = 0.0;
+            }
+        }
+        if !dense {
+            csr.row_ptr.push(csr.vals.len());
+        }
+    }
+    let cut = if matches!(keep, Keep::All) || count == 0 {
+        0.0
+    } else {
+        smallest
+    };
+    let kept = if dense {
+        KeptMatrix::Dense(m)
+    } else {
+        KeptMatrix::Sparse(csr)
+    };
+    (kept, count, cut, squares)
+}
+
+/// Keeps what `keep` asks for as a sparse matrix, leaving the dense one as it is.
 pub fn threshold(m: &Dense, keep: Keep, ranking: &Ranking) -> Kept {
-    let nonzero = ranking.nonzero();
-    let count = match keep {
-        Keep::All | Keep::Threshold(_) => nonzero,
-        Keep::Top(n) => n.min(nonzero),
-        Keep::Fraction(f) => ((f * ranking.len() as f64).ceil() as usize).min(nonzero),
-    };
-    // (cut, entries strictly above it): keep |v| > cut, and |v| == cut while ties are left
-    let (cut, above) = match keep {
-        Keep::Threshold(t) => (t, 0),
-        _ if count == 0 => (f64::INFINITY, 0),
-        _ => ranking.locate(&m.data, &[count - 1])[0],
-    };
-    let threshold_rule = matches!(keep, Keep::Threshold(_));
-    let mut ties_left = count.saturating_sub(above);
+    let mut sel = Selector::new(m, keep, ranking);
     let n = m.n;
     let mut csr = Csr {
         n,
@@ -288,17 +407,10 @@ pub fn threshold(m: &Dense, keep: Keep, ranking: &Ranking) -> Kept {
     csr.row_ptr.push(0);
     for i in 0..n {
         for (j, &v) in m.row(i).iter().enumerate() {
-            let a = v.abs();
-            let keep_it = a > 0.0
-                && (a > cut
-                    || (a == cut && (threshold_rule || ties_left > 0) && {
-                        ties_left = ties_left.saturating_sub(1);
-                        true
-                    }));
-            if keep_it {
+            if sel.keeps(v) {
                 csr.cols.push(j as u32);
                 csr.vals.push(v);
-                smallest = smallest.min(a);
+                smallest = smallest.min(v.abs());
             } else {
                 dropped += v * v;
             }
@@ -337,6 +449,26 @@ pub fn picture(m: &Dense, max_side: usize, cut: f64) -> MagnitudePicture {
         let row = m.row(i);
         for (j, v) in row.iter().enumerate() {
             let cell = &mut values[(i / block) * side + j / block];
+            *cell = cell.max(v.abs());
+        }
+    }
+    MagnitudePicture {
+        side,
+        values,
+        block,
+        cut,
+    }
+}
+
+/// [`picture`] of a sparse matrix.
+pub fn picture_sparse(m: &Csr, max_side: usize, cut: f64) -> MagnitudePicture {
+    let block = m.n.div_ceil(max_side.max(1)).max(1);
+    let side = m.n.div_ceil(block);
+    let mut values = vec![0.0f64; side * side];
+    for i in 0..m.n {
+        let (cols, vals) = m.row(i);
+        for (&j, v) in cols.iter().zip(vals) {
+            let cell = &mut values[(i / block) * side + j as usize / block];
             *cell = cell.max(v.abs());
         }
     }

@@ -2,11 +2,11 @@
 //! (build → transform → threshold → solve → metrics) and the assembly of the result.
 //! Kinds and methods plug in by producing a [`Solution`].
 
-use crate::compress::{self, Kept, MagnitudePicture};
+use crate::compress::{self, KeptMatrix, MagnitudePicture};
 use crate::field::Field;
 use crate::metrics;
 use crate::progress::{Cancelled, Phase, Progress};
-use crate::projection::{self, flatland, Discretization, Layout, System};
+use crate::projection::{self, flatland, Dense, Discretization, Layout, System};
 use crate::result::*;
 use crate::scene::{BasisKind, Job, Keep, Method, Reference, Rgb, SceneKind};
 use crate::solve::{self, SolveError, Solved};
@@ -244,20 +244,12 @@ pub fn projection_solve(
                 .map(|x| x.0),
         )
         .collect();
-    let Kept { csr, cut, .. } = compress::threshold(&system.matrix, keep, &ranking);
-    let picture = compress::picture(&system.matrix, 512, cut);
-    let per = layout.len();
-    let s = system.surfaces;
-    let mut squares = vec![0.0; s * s];
-    for i in 0..csr.n {
-        let (cols, vals) = csr.row(i);
-        for (&j, &v) in cols.iter().zip(vals) {
-            squares[(i / per) * s + j as usize / per] += v * v;
-        }
-    }
     let basis_size = system.size();
     let matrix_entries = basis_size * basis_size;
-    drop(std::mem::take(&mut system.matrix.data));
+    let matrix = std::mem::replace(&mut system.matrix, Dense::zeros(0));
+    let (kept, kept_entries, cut, squares) =
+        compress::keep_entries(matrix, keep, &ranking, layout.len());
+    let picture = picture_of(&kept, cut);
     timings.insert("threshold".into(), ms(t));
     let t = Instant::now();
     let rho: Vec<Rgb> = (0..basis_size)
@@ -268,10 +260,11 @@ pub fn projection_solve(
         tolerance: job.solver.tolerance,
         max_iterations: job.solver.max_iterations,
     };
-    let solved = solve::solve(&csr, &rho, &system.emission, settings, progress)?;
+    let solved = solve::solve(kept.operator(), &rho, &system.emission, settings, progress)?;
     timings.insert("solve".into(), ms(t));
     let mut b = solved.b.clone();
-    let mut h = solve::multiply(&csr, &solved.b);
+    let mut h = solve::multiply(kept.operator(), &solved.b);
+    drop(kept);
     let mut e = system.emission.clone();
     if wavelet {
         for v in [&mut b, &mut h, &mut e] {
@@ -282,7 +275,6 @@ pub fn projection_solve(
     let fields = fields_from_scaling(layout, order, &system.measure, &b);
     let irradiance = fields_from_scaling(layout, order, &system.measure, &h);
     let emission = fields_from_scaling(layout, order, &system.measure, &e);
-    let kept_entries = csr.nnz();
     let mut sol = Solution {
         fields,
         emission,
@@ -303,6 +295,14 @@ pub fn projection_solve(
     };
     sol.kept_squares = squares;
     Ok(sol)
+}
+
+/// The sparsity picture of what was kept (dropped entries are zero in it).
+fn picture_of(kept: &KeptMatrix, cut: f64) -> MagnitudePicture {
+    match kept {
+        KeptMatrix::Dense(d) => compress::picture(d, 512, cut),
+        KeptMatrix::Sparse(c) => compress::picture_sparse(c, 512, cut),
+    }
 }
 
 /// Eq. (5), and the pairs of surfaces it left out.

@@ -10,8 +10,72 @@
 
 use crate::compress::Csr;
 use crate::progress::{Cancelled, Phase, Progress};
+use crate::projection::Dense;
 use crate::scene::{Iteration, Rgb};
 use rayon::prelude::*;
+
+/// A square matrix the iterations can sweep: sparse after thresholding, or dense when most
+/// entries are kept (a dense sweep needs no second copy of the matrix).
+pub trait Operator: Sync {
+    fn size(&self) -> usize;
+    fn diagonal(&self, i: usize) -> f64;
+    /// Σ_{j ≠ i} K_ij b_j for three channels.
+    fn off_diagonal_dot(&self, i: usize, b: &[Rgb]) -> Rgb;
+    /// Σ_j K_ij b_j.
+    fn dot(&self, i: usize, b: &[Rgb]) -> Rgb {
+        let d = self.diagonal(i);
+        let mut acc = self.off_diagonal_dot(i, b);
+        for c in 0..3 {
+            acc[c] += d * b[i][c];
+        }
+        acc
+    }
+}
+
+impl Operator for Csr {
+    fn size(&self) -> usize {
+        self.n
+    }
+    fn diagonal(&self, i: usize) -> f64 {
+        Csr::diagonal(self, i)
+    }
+    #[inline]
+    fn off_diagonal_dot(&self, i: usize, b: &[Rgb]) -> Rgb {
+        let (cols, vals) = self.row(i);
+        let mut acc = [0.0; 3];
+        for (&j, &v) in cols.iter().zip(vals) {
+            let j = j as usize;
+            if j != i {
+                let bj = b[j];
+                acc[0] += v * bj[0];
+                acc[1] += v * bj[1];
+                acc[2] += v * bj[2];
+            }
+        }
+        acc
+    }
+}
+
+impl Operator for Dense {
+    fn size(&self) -> usize {
+        self.n
+    }
+    fn diagonal(&self, i: usize) -> f64 {
+        self.get(i, i)
+    }
+    #[inline]
+    fn off_diagonal_dot(&self, i: usize, b: &[Rgb]) -> Rgb {
+        let mut acc = [0.0; 3];
+        for (j, (&v, bj)) in self.row(i).iter().zip(b).enumerate() {
+            if j != i {
+                acc[0] += v * bj[0];
+                acc[1] += v * bj[1];
+                acc[2] += v * bj[2];
+            }
+        }
+        acc
+    }
+}
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Settings {
@@ -47,13 +111,13 @@ impl From<Cancelled> for SolveError {
 
 /// Solves B = E + diag(ρ) K B. `rho[i]` is the reflectance of row i.
 pub fn solve(
-    k: &Csr,
+    k: &dyn Operator,
     rho: &[Rgb],
     e: &[Rgb],
     settings: Settings,
     progress: &dyn Progress,
 ) -> Result<Solved, SolveError> {
-    let n = k.n;
+    let n = k.size();
     assert!(rho.len() == n && e.len() == n);
     // 1 / (1 − ρ_i K_ii) per row and channel
     let mut inv_diag = vec![[1.0; 3]; n];
@@ -147,18 +211,15 @@ pub fn solve(
 }
 
 #[inline]
-fn sweep_row(k: &Csr, i: usize, rho: &[Rgb], e: &[Rgb], inv_diag: &[Rgb], b: &[Rgb]) -> Rgb {
-    let (cols, vals) = k.row(i);
-    let mut acc = [0.0; 3];
-    for (&j, &v) in cols.iter().zip(vals) {
-        let j = j as usize;
-        if j != i {
-            let bj = b[j];
-            acc[0] += v * bj[0];
-            acc[1] += v * bj[1];
-            acc[2] += v * bj[2];
-        }
-    }
+fn sweep_row(
+    k: &dyn Operator,
+    i: usize,
+    rho: &[Rgb],
+    e: &[Rgb],
+    inv_diag: &[Rgb],
+    b: &[Rgb],
+) -> Rgb {
+    let acc = k.off_diagonal_dot(i, b);
     let mut out = [0.0; 3];
     for c in 0..3 {
         out[c] = (e[i][c] + rho[i][c] * acc[c]) * inv_diag[i][c];
@@ -167,10 +228,10 @@ fn sweep_row(k: &Csr, i: usize, rho: &[Rgb], e: &[Rgb], inv_diag: &[Rgb], b: &[R
 }
 
 /// ‖E + ρKB − B‖ / ‖B‖.
-pub fn residual(k: &Csr, rho: &[Rgb], e: &[Rgb], b: &[Rgb]) -> f64 {
+pub fn residual(k: &dyn Operator, rho: &[Rgb], e: &[Rgb], b: &[Rgb]) -> f64 {
     let kb = multiply(k, b);
     let mut r = 0.0;
-    for i in 0..k.n {
+    for i in 0..k.size() {
         for c in 0..3 {
             r += (e[i][c] + rho[i][c] * kb[i][c] - b[i][c]).powi(2);
         }
@@ -184,20 +245,8 @@ pub fn residual(k: &Csr, rho: &[Rgb], e: &[Rgb], b: &[Rgb]) -> f64 {
 }
 
 /// K B for three channels.
-pub fn multiply(k: &Csr, b: &[Rgb]) -> Vec<Rgb> {
-    (0..k.n)
-        .into_par_iter()
-        .map(|i| {
-            let (cols, vals) = k.row(i);
-            let mut acc = [0.0; 3];
-            for (&j, &v) in cols.iter().zip(vals) {
-                for c in 0..3 {
-                    acc[c] += v * b[j as usize][c];
-                }
-            }
-            acc
-        })
-        .collect()
+pub fn multiply(k: &dyn Operator, b: &[Rgb]) -> Vec<Rgb> {
+    (0..k.size()).into_par_iter().map(|i| k.dot(i, b)).collect()
 }
 
 fn norm(v: &[Rgb]) -> f64 {
