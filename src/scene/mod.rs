@@ -54,7 +54,8 @@ pub struct Limits {
     pub max_surfaces: usize,
     pub max_order: usize,
     pub max_resolution: usize,
-    /// The projection matrix is `basis_size²` dense entries of 8 bytes.
+    /// The projection matrix is `basis_size²` dense entries of 8 bytes, and thresholding may add
+    /// a sparse copy of up to a third of them (12 bytes each): 12 · basis_size² bytes at peak.
     pub max_basis_functions: usize,
     pub max_image_pixels: usize,
 }
@@ -65,8 +66,9 @@ impl Default for Limits {
             max_surfaces: 256,
             max_order: 8,
             max_resolution: 1024,
-            // 11_585² entries × 8 bytes ≈ 1 GiB of dense matrix.
-            max_basis_functions: 11_585,
+            // At most 12 bytes per matrix entry at peak (the dense matrix, and a sparse copy of at
+            // most a third of it): 9459² × 12 bytes ≈ 1 GiB.
+            max_basis_functions: 9459,
             max_image_pixels: 4096 * 4096,
         }
     }
