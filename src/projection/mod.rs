@@ -135,7 +135,8 @@ pub fn build(
 pub fn points_for_separation(dist: f64, size: f64) -> usize {
     let a = 1.0 + 2.0 * dist / size.max(1e-300);
     let rho = a + (a * a - 1.0).max(0.0).sqrt();
-    (15.0 / rho.ln()).ceil().clamp(1.0, 24.0) as usize
+    // NaN (degenerate input) falls to the largest rule
+    (15.0 / rho.ln()).ceil().min(24.0).max(1.0) as usize
 }
 
 #[cfg(test)]
@@ -162,5 +163,7 @@ mod tests {
     fn more_points_when_closer() {
         assert!(points_for_separation(1.0, 1.0) > points_for_separation(10.0, 1.0));
         assert!(points_for_separation(1000.0, 1.0) <= 2);
+        assert_eq!(points_for_separation(f64::NAN, 1.0), 24);
+        assert_eq!(points_for_separation(0.0, 0.0), 24);
     }
 }

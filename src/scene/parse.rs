@@ -151,7 +151,7 @@ fn fredholm(w: &mut Walker, map: &Map<String, Value>) -> Option<Fredholm> {
     let path = "/scene";
     let domain = w.required(map, path, "domain").and_then(|d| {
         let p = "/scene/domain";
-        let [a, b] = w.numbers::<2>(d, p)?;
+        let [a, b] = w.coordinates::<2>(d, p)?;
         if a >= b {
             w.error(
                 p,
@@ -280,8 +280,8 @@ fn segment(w: &mut Walker, v: &Value, path: &str) -> Option<Segment> {
     let ends = w.required(map, path, "segment").and_then(|s| {
         let p = child(path, "segment");
         let arr = w.array_len(s, &p, 2)?;
-        let a = w.numbers::<2>(&arr[0], &index(&p, 0));
-        let b = w.numbers::<2>(&arr[1], &index(&p, 1));
+        let a = w.coordinates::<2>(&arr[0], &index(&p, 0));
+        let b = w.coordinates::<2>(&arr[1], &index(&p, 1));
         let (a, b) = (a?, b?);
         let len = (b[0] - a[0]).hypot(b[1] - a[1]);
         let size = a.iter().chain(&b).fold(0.0f64, |m, x| m.max(x.abs()));
@@ -325,7 +325,7 @@ fn quad(w: &mut Walker, v: &Value, path: &str) -> Option<Quad> {
         let pts: Vec<Option<[f64; 3]>> = arr
             .iter()
             .enumerate()
-            .map(|(i, x)| w.numbers::<3>(x, &index(&p, i)))
+            .map(|(i, x)| w.coordinates::<3>(x, &index(&p, i)))
             .collect();
         let pts: Option<Vec<[f64; 3]>> = pts.into_iter().collect();
         let pts = pts?;
@@ -620,10 +620,10 @@ fn camera(w: &mut Walker, v: &Value) -> Option<Camera> {
     let map = w.object(v, path, &["eye", "look_at", "up", "fov_deg"])?;
     let eye = w
         .required(map, path, "eye")
-        .and_then(|v| w.numbers::<3>(v, "/output/camera/eye"));
+        .and_then(|v| w.coordinates::<3>(v, "/output/camera/eye"));
     let look_at = w
         .required(map, path, "look_at")
-        .and_then(|v| w.numbers::<3>(v, "/output/camera/look_at"));
+        .and_then(|v| w.coordinates::<3>(v, "/output/camera/look_at"));
     let up = match map.get("up") {
         Some(v) => w.numbers::<3>(v, "/output/camera/up"),
         None => Some([0.0, 1.0, 0.0]),

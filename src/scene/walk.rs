@@ -131,6 +131,21 @@ impl Walker {
         s
     }
 
+    /// An array of `N` coordinates, each within ±1e12 (beyond that, squared distances overflow).
+    pub fn coordinates<const N: usize>(&mut self, v: &Value, path: &str) -> Option<[f64; N]> {
+        let c = self.numbers::<N>(v, path)?;
+        for (i, x) in c.iter().enumerate() {
+            if x.abs() > 1e12 {
+                self.error(
+                    index(path, i),
+                    format!("{x} is out of range: coordinates are within ±1e12"),
+                );
+                return None;
+            }
+        }
+        Some(c)
+    }
+
     /// An array of exactly `n` finite numbers.
     pub fn numbers<const N: usize>(&mut self, v: &Value, path: &str) -> Option<[f64; N]> {
         let arr = self.array_len(v, path, N)?;
