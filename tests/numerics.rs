@@ -353,3 +353,30 @@ fn wavelets_make_the_kernel_sparse() {
         }
     }
 }
+
+/// A closed room with a box inside, every surface with the same E and ρ: every point still sees
+/// a closed world (partly through the box's shadows), so B = E / (1 − ρ) holds exactly. This
+/// checks the exact visibility: any lost or doubled shadow breaks it.
+#[test]
+fn furnace_with_an_occluding_box_inside() {
+    let walls = [[[0.0, 0.0], [1.0, 0.0]], [[1.0, 0.0], [1.0, 1.0]], [[1.0, 1.0], [0.0, 1.0]], [[0.0, 1.0], [0.0, 0.0]]];
+    // the box faces out: clockwise
+    let b = [[0.35, 0.3], [0.35, 0.55], [0.62, 0.55], [0.62, 0.3]];
+    let box_faces = [[b[0], b[1]], [b[1], b[2]], [b[2], b[3]], [b[3], b[0]]];
+    let surfaces: Vec<Value> = walls
+        .iter()
+        .chain(box_faces.iter())
+        .enumerate()
+        .map(|(i, s)| json!({"name": format!("s{i}"), "segment": s, "reflectance": 0.6, "emission": 2.0}))
+        .collect();
+    for (order, n) in [(0, 16), (2, 16)] {
+        let o = run(json!({"scene": {"kind": "flatland", "surfaces": surfaces},
+            "solver": {"order": order, "resolution": n, "tolerance": 1e-13, "max_iterations": 2000},
+            "output": {"grid": 8}}));
+        for s in &o.result.surfaces {
+            for c in &s.cells {
+                assert!((c[0] - 5.0).abs() < 1e-6 * 5.0, "m={order} {}: {}", s.name, c[0]);
+            }
+        }
+    }
+}
