@@ -183,6 +183,22 @@ pub fn solve_job(
     progress: &dyn Progress,
 ) -> Result<Solution, JobError> {
     match (&job.scene.kind, job.solver.method) {
+        (SceneKind::Flatland(segments), Method::Hierarchical) => {
+            let settings = solve::Settings {
+                iteration: job.solver.iteration,
+                tolerance: job.solver.tolerance,
+                max_iterations: job.solver.max_iterations,
+            };
+            crate::hierarchy::flatland::solve(
+                segments,
+                order,
+                resolution,
+                job.solver.quadrature.max(order + 2),
+                job.solver.epsilon,
+                settings,
+                progress,
+            )
+        }
         (SceneKind::ThreeD(_), _) | (_, Method::Hierarchical) => {
             Err(JobError::Unsupported(format!(
                 "{} scenes with the {:?} method are not available in this build",

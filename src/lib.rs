@@ -17,6 +17,10 @@ pub mod basis;
 pub mod compress;
 pub mod field;
 pub mod geometry;
+pub mod hierarchy {
+    //! Hierarchical wavelet radiosity: elements, links, the refinement oracle, push–pull.
+    pub mod flatland;
+}
 pub mod job;
 pub mod kernel;
 pub mod metrics;

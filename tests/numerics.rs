@@ -359,7 +359,12 @@ fn wavelets_make_the_kernel_sparse() {
 /// checks the exact visibility: any lost or doubled shadow breaks it.
 #[test]
 fn furnace_with_an_occluding_box_inside() {
-    let walls = [[[0.0, 0.0], [1.0, 0.0]], [[1.0, 0.0], [1.0, 1.0]], [[1.0, 1.0], [0.0, 1.0]], [[0.0, 1.0], [0.0, 0.0]]];
+    let walls = [
+        [[0.0, 0.0], [1.0, 0.0]],
+        [[1.0, 0.0], [1.0, 1.0]],
+        [[1.0, 1.0], [0.0, 1.0]],
+        [[0.0, 1.0], [0.0, 0.0]],
+    ];
     // the box faces out: clockwise
     let b = [[0.35, 0.3], [0.35, 0.55], [0.62, 0.55], [0.62, 0.3]];
     let box_faces = [[b[0], b[1]], [b[1], b[2]], [b[2], b[3]], [b[3], b[0]]];
@@ -375,7 +380,12 @@ fn furnace_with_an_occluding_box_inside() {
             "output": {"grid": 8}}));
         for s in &o.result.surfaces {
             for c in &s.cells {
-                assert!((c[0] - 5.0).abs() < 1e-6 * 5.0, "m={order} {}: {}", s.name, c[0]);
+                assert!(
+                    (c[0] - 5.0).abs() < 1e-6 * 5.0,
+                    "m={order} {}: {}",
+                    s.name,
+                    c[0]
+                );
             }
         }
     }

@@ -110,7 +110,7 @@ fn front_range(a: &Line, b: &Line) -> Option<[f64; 2]> {
     }
 }
 
-fn intersect(a: [f64; 2], b: [f64; 2]) -> Option<[f64; 2]> {
+pub fn intersect(a: [f64; 2], b: [f64; 2]) -> Option<[f64; 2]> {
     let lo = a[0].max(b[0]);
     let hi = a[1].min(b[1]);
     (hi > lo).then_some([lo, hi])
@@ -145,25 +145,30 @@ pub fn build(
     })
 }
 
-/// E_{cell,p} = E √(L/h) ∫_{cell ∩ region} φ_p(ŝ) ds, exactly.
+/// E on every cell of a uniform grid, `[cell][p]`.
 fn emission_coefficients(s: &Segment, len: f64, disc: Discretization) -> Vec<[f64; 3]> {
-    let k = disc.order + 1;
     let h = 1.0 / disc.cells as f64;
-    let rule = Rule::for_degree(disc.order);
-    let mut out = vec![[0.0; 3]; disc.cells * k];
+    (0..disc.cells)
+        .flat_map(|c| emission_on(s, len, [c as f64 * h, (c + 1) as f64 * h], disc.order))
+        .collect()
+}
+
+/// E_p = ∫_{cell} E N_p = E √(L/h) ∫_{cell ∩ region} φ_p(ŝ) ds on one parameter interval,
+/// exactly (E is constant on its region).
+pub fn emission_on(s: &Segment, len: f64, cell: [f64; 2], order: usize) -> Vec<[f64; 3]> {
+    let k = order + 1;
+    let h = cell[1] - cell[0];
+    let mut out = vec![[0.0; 3]; k];
+    let Some(part) = intersect(cell, s.emission_region) else {
+        return out;
+    };
     let mut phi = vec![0.0; k];
-    for c in 0..disc.cells {
-        let cell = [c as f64 * h, (c + 1) as f64 * h];
-        let Some(part) = intersect(cell, s.emission_region) else {
-            continue;
-        };
-        for (x, w) in rule.mapped(part[0], part[1]) {
-            legendre((x - cell[0]) / h, &mut phi);
-            for p in 0..k {
-                let v = w * phi[p] * (len / h).sqrt();
-                for ch in 0..3 {
-                    out[c * k + p][ch] += v * s.material.emission[ch];
-                }
+    for (x, w) in Rule::for_degree(order).mapped(part[0], part[1]) {
+        legendre((x - cell[0]) / h, &mut phi);
+        for p in 0..k {
+            let v = w * phi[p] * (len / h).sqrt();
+            for ch in 0..3 {
+                out[p][ch] += v * s.material.emission[ch];
             }
         }
     }
@@ -390,7 +395,8 @@ pub struct CellPair<'g> {
     occluders: &'g [usize],
     cell_a: [f64; 2],
     cell_b: [f64; 2],
-    h: f64,
+    h_a: f64,
+    h_b: f64,
     k: usize,
     q_min: usize,
     /// √(L_i L_j / (h_a h_b)): the normalisation of the two basis functions; L_i L_j for K².
@@ -410,18 +416,42 @@ impl<'g> CellPair<'g> {
         pair: &'g PairInfo,
     ) -> CellPair<'g> {
         let h = 1.0 / disc.cells as f64;
+        let cell_a = [a as f64 * h, (a + 1) as f64 * h];
+        let cell_b = [b as f64 * h, (b + 1) as f64 * h];
+        CellPair::between(
+            geo,
+            (i, cell_a),
+            (j, cell_b),
+            disc.order,
+            disc.quadrature,
+            pair,
+        )
+    }
+
+    /// Two parameter intervals of any sizes: `cell_a` of surface i and `cell_b` of surface j,
+    /// with the orthonormal Legendre functions of order `order` on each.
+    pub fn between(
+        geo: &'g Geometry,
+        (i, cell_a): (usize, [f64; 2]),
+        (j, cell_b): (usize, [f64; 2]),
+        order: usize,
+        quadrature: usize,
+        pair: &'g PairInfo,
+    ) -> CellPair<'g> {
         let (li, lj) = (&geo.lines[i], &geo.lines[j]);
+        let (h_a, h_b) = (cell_a[1] - cell_a[0], cell_b[1] - cell_b[0]);
         CellPair {
             li,
             lj,
             lines: &geo.lines,
             occluders: &pair.occluders,
-            cell_a: [a as f64 * h, (a + 1) as f64 * h],
-            cell_b: [b as f64 * h, (b + 1) as f64 * h],
-            h,
-            k: disc.order + 1,
-            q_min: disc.quadrature.min(MAX_Q),
-            scale: (li.len * lj.len).sqrt() / h,
+            cell_a,
+            cell_b,
+            h_a,
+            h_b,
+            k: order + 1,
+            q_min: quadrature.min(MAX_Q),
+            scale: (li.len * lj.len / (h_a * h_b)).sqrt(),
             squared: false,
         }
     }
@@ -504,12 +534,18 @@ impl<'g> CellPair<'g> {
         let mut xs = [V2::default(); MAX_Q];
         let mut ys = [V2::default(); MAX_Q];
         for (n, (s, w)) in rule.mapped(sa[0], sa[1]).enumerate() {
-            legendre((s - self.cell_a[0]) / self.h, &mut phi_a[n * k..n * k + k]);
+            legendre(
+                (s - self.cell_a[0]) / self.h_a,
+                &mut phi_a[n * k..n * k + k],
+            );
             phi_a[n * k..n * k + k].iter_mut().for_each(|v| *v *= w);
             xs[n] = self.li.at(s);
         }
         for (n, (t, w)) in rule.mapped(sb[0], sb[1]).enumerate() {
-            legendre((t - self.cell_b[0]) / self.h, &mut phi_b[n * k..n * k + k]);
+            legendre(
+                (t - self.cell_b[0]) / self.h_b,
+                &mut phi_b[n * k..n * k + k],
+            );
             phi_b[n * k..n * k + k].iter_mut().for_each(|v| *v *= w);
             ys[n] = self.lj.at(t);
         }
@@ -563,13 +599,13 @@ impl<'g> CellPair<'g> {
                             kv *= kv;
                         }
                         kv *= wt;
-                        legendre((t - self.cell_b[0]) / self.h, &mut phi[..k]);
+                        legendre((t - self.cell_b[0]) / self.h_b, &mut phi[..k]);
                         for r in 0..k {
                             tmp[r] += kv * phi[r];
                         }
                     }
                 }
-                legendre((s - self.cell_a[0]) / self.h, &mut phi[..k]);
+                legendre((s - self.cell_a[0]) / self.h_a, &mut phi[..k]);
                 for p in 0..k {
                     let f = phi[p] * ws * self.scale;
                     for r in 0..k {

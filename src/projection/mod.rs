@@ -135,8 +135,13 @@ pub fn build(
 pub fn points_for_separation(dist: f64, size: f64) -> usize {
     let a = 1.0 + 2.0 * dist / size.max(1e-300);
     let rho = a + (a * a - 1.0).max(0.0).sqrt();
+    let q = (15.0 / rho.ln()).ceil();
     // NaN (degenerate input) falls to the largest rule
-    (15.0 / rho.ln()).ceil().min(24.0).max(1.0) as usize
+    if q.is_nan() {
+        24
+    } else {
+        q.clamp(1.0, 24.0) as usize
+    }
 }
 
 #[cfg(test)]

@@ -1,0 +1,754 @@
+//! Hierarchical wavelet radiosity in flatland (Gortler, Schröder, Cohen and Hanrahan, "Wavelet
+//! Radiosity", SIGGRAPH 1993, §4–5; Hanrahan, Salzman and Aupperle, "A Rapid Hierarchical
+//! Radiosity Algorithm", SIGGRAPH 1991, §3–4), with Alpert's multiwavelets of order m.
+//!
+//! Every segment is the root of a binary tree of elements (parameter intervals, at most
+//! `resolution` leaves deep). An element carries the k = m + 1 coefficients of B, E and the
+//! gathered irradiance H in the orthonormal Legendre functions on it. A link r ← s carries the
+//! k × k Galerkin transfer T_pq = ∫_r ∫_s K(x,y) N_s,q(y) N_r,p(x) dy dx (eq. (11) between two
+//! elements of any sizes, with exact visibility). One sweep of the solve is
+//!
+//! 1. gather: H_r = Σ_{links r ← s} T B_s;
+//! 2. push–pull: H is pushed down the tree through the two-scale relations (child coefficients
+//!    Hᵀ h), B = E + ρ H at the leaves, and B is pulled back up (parent coefficients H b, the
+//!    projection onto the coarser level; the wavelet details stay in the children);
+//!
+//! a Jacobi sweep of B = E + ρKB in the non-standard multiwavelet form. The refinement oracle
+//! estimates what a link gets wrong: the part of K on r × s outside the tensor polynomials of
+//! order m (sampled on a Gauss grid, visibility included), times ‖B_s‖, times ρ_r: a bound of
+//! the L² norm of the error of B on r, the measure of eq. (6). A link whose estimate is above
+//! ε·E_max·√L (L the longest segment) is replaced by links between the children of the longer
+//! element. The first pass refines against the emission only; each
+//! following pass re-refines against the B just solved ("BF refinement") until no link changes.
+
+use crate::basis::{legendre, Filters};
+use crate::field::{Field, Leaf};
+use crate::geometry::Line;
+use crate::job::{JobError, Solution};
+use crate::kernel;
+use crate::progress::{Phase, Progress};
+use crate::projection::flatland::{emission_on, intersect, CellPair, Geometry};
+use crate::quadrature::Rule;
+use crate::result::HierarchyStats;
+use crate::scene::{Rgb, Segment};
+use crate::solve::{Settings, SolveError, Solved};
+use crate::visibility::{visible_from, Pieces};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// Refinement passes after the first solve, at most.
+const MAX_PASSES: usize = 8;
+
+/// An interval of a segment's parameter, in the tree of that segment.
+#[derive(Debug, Clone)]
+pub struct Element {
+    pub surface: usize,
+    pub range: [f64; 2],
+    pub level: u32,
+    pub children: Option<[usize; 2]>,
+    /// Coefficients in N_p = φ_p(ŝ) / √|e| (orthonormal in arc length), per channel.
+    pub e: Vec<Rgb>,
+    pub b: Vec<Rgb>,
+    /// Gathered at this element by its own links.
+    pub h: Vec<Rgb>,
+    /// H from all levels, pushed down (leaves only; for the energy balance).
+    pub h_total: Vec<Rgb>,
+}
+
+/// A link r ← s and its transfer block (row-major k × k, p of r by q of s).
+#[derive(Debug, Clone)]
+pub struct Link {
+    pub r: usize,
+    pub s: usize,
+    pub t: Vec<f64>,
+}
+
+pub struct Hierarchy<'a> {
+    geo: Geometry,
+    segments: &'a [Segment],
+    filters: &'static Filters,
+    k: usize,
+    order: usize,
+    quadrature: usize,
+    max_level: u32,
+    threshold: f64,
+    rho_max: Vec<f64>,
+    pub elements: Vec<Element>,
+    pub links: Vec<Link>,
+    pub refinements: usize,
+}
+
+impl<'a> Hierarchy<'a> {
+    pub fn new(
+        segments: &'a [Segment],
+        order: usize,
+        resolution: usize,
+        quadrature: usize,
+        epsilon: f64,
+    ) -> Self {
+        let geo = Geometry::new(segments);
+        let e_max = segments
+            .iter()
+            .flat_map(|s| s.material.emission)
+            .fold(0.0f64, f64::max);
+        let mut h = Hierarchy {
+            segments,
+            filters: Filters::of_order(order),
+            k: order + 1,
+            order,
+            quadrature,
+            max_level: resolution.trailing_zeros(),
+            // the L² norm of the brightest light over the longest segment
+            threshold: epsilon
+                * e_max
+                * segments
+                    .iter()
+                    .map(|s| (s.b[0] - s.a[0]).hypot(s.b[1] - s.a[1]))
+                    .fold(0.0, f64::max)
+                    .sqrt(),
+            rho_max: segments
+                .iter()
+                .map(|s| s.material.reflectance.iter().fold(0.0f64, |a, b| a.max(*b)))
+                .collect(),
+            elements: Vec::new(),
+            links: Vec::new(),
+            refinements: 0,
+            geo,
+        };
+        for i in 0..segments.len() {
+            h.push_element(i, [0.0, 1.0], 0);
+        }
+        h
+    }
+
+    fn push_element(&mut self, surface: usize, range: [f64; 2], level: u32) -> usize {
+        let seg = &self.segments[surface];
+        let e = emission_on(seg, self.geo.lines[surface].len, range, self.order);
+        self.elements.push(Element {
+            surface,
+            range,
+            level,
+            children: None,
+            b: e.clone(),
+            e,
+            h: vec![[0.0; 3]; self.k],
+            h_total: vec![[0.0; 3]; self.k],
+        });
+        self.elements.len() - 1
+    }
+
+    /// Splits a leaf in two; the children start from the parent's B pushed down.
+    fn split(&mut self, e: usize) -> [usize; 2] {
+        if let Some(c) = self.elements[e].children {
+            return c;
+        }
+        let Element {
+            surface,
+            range,
+            level,
+            ..
+        } = self.elements[e];
+        let mid = 0.5 * (range[0] + range[1]);
+        let a = self.push_element(surface, [range[0], mid], level + 1);
+        let b = self.push_element(surface, [mid, range[1]], level + 1);
+        let parent_b = self.elements[e].b.clone();
+        for (child, c) in [(a, 0), (b, 1)] {
+            self.elements[child].b = self.down(&parent_b, c);
+        }
+        self.elements[e].children = Some([a, b]);
+        [a, b]
+    }
+
+    /// Coefficients on child `c` (0 left, 1 right) of the parent function with coefficients v.
+    fn down(&self, v: &[Rgb], c: usize) -> Vec<Rgb> {
+        let k = self.k;
+        let h = &self.filters.h;
+        (0..k)
+            .map(|q| {
+                let mut out = [0.0; 3];
+                for p in 0..k {
+                    let f = h[p * 2 * k + c * k + q];
+                    for ch in 0..3 {
+                        out[ch] += f * v[p][ch];
+                    }
+                }
+                out
+            })
+            .collect()
+    }
+
+    /// Parent coefficients of the function with child coefficients `left` and `right`.
+    fn up(&self, left: &[Rgb], right: &[Rgb]) -> Vec<Rgb> {
+        let k = self.k;
+        let h = &self.filters.h;
+        (0..k)
+            .map(|p| {
+                let mut out = [0.0; 3];
+                for q in 0..k {
+                    for ch in 0..3 {
+                        out[ch] +=
+                            h[p * 2 * k + q] * left[q][ch] + h[p * 2 * k + k + q] * right[q][ch];
+                    }
+                }
+                out
+            })
+            .collect()
+    }
+
+    fn length(&self, e: usize) -> f64 {
+        let el = &self.elements[e];
+        self.geo.lines[el.surface].len * (el.range[1] - el.range[0])
+    }
+
+    /// ‖B_s‖ in L²(s) (largest channel), or of E alone in the first pass.
+    fn source_norm(&self, s: usize, emission_only: bool) -> f64 {
+        let v = if emission_only {
+            &self.elements[s].e
+        } else {
+            &self.elements[s].b
+        };
+        (0..3)
+            .map(|c| v.iter().map(|x| x[c] * x[c]).sum::<f64>().sqrt())
+            .fold(0.0, f64::max)
+    }
+
+    /// Whether r and s can exchange light at all (both partly in front of the other).
+    fn facing(&self, r: usize, s: usize) -> bool {
+        let (er, es) = (&self.elements[r], &self.elements[s]);
+        if er.surface == es.surface {
+            return false;
+        }
+        let pair = self.geo.pair(er.surface, es.surface);
+        match (pair.front_i, pair.front_j) {
+            (Some(fi), Some(fj)) => {
+                intersect(er.range, fi).is_some() && intersect(es.range, fj).is_some()
+            }
+            _ => false,
+        }
+    }
+
+    /// The oracle: the L² norm over r of the error of B that the link r ← s would make (the
+    /// measure of eq. (6)): ρ_r ‖K − PKP‖ ‖B_s‖.
+    fn estimate(&self, r: usize, s: usize, emission_only: bool) -> f64 {
+        let rho = self.rho_max[self.elements[r].surface];
+        let bs = self.source_norm(s, emission_only);
+        if rho == 0.0 || bs == 0.0 {
+            return 0.0;
+        }
+        rho * self.kernel_residual(r, s) * bs
+    }
+
+    /// ‖K − P_r ⊗ P_s K‖ in L²(r × s), K sampled (with visibility) on a (k+2)² Gauss grid.
+    fn kernel_residual(&self, r: usize, s: usize) -> f64 {
+        let k = self.k;
+        let (er, es) = (&self.elements[r], &self.elements[s]);
+        let (li, lj) = (&self.geo.lines[er.surface], &self.geo.lines[es.surface]);
+        let pair = self.geo.pair(er.surface, es.surface);
+        let occ: Vec<Line> = pair.occluders.iter().map(|&o| self.geo.lines[o]).collect();
+        // a shadow boundary can fall between samples: sample occluded pairs three times denser
+        let rule = Rule::gauss(if occ.is_empty() { k + 2 } else { 3 * (k + 2) });
+        let q = rule.len();
+        let mut kv = vec![0.0; q * q];
+        let mut pieces = Pieces::new();
+        let range_j = pair.front_j.and_then(|f| intersect(es.range, f));
+        for (a, &u) in rule.nodes.iter().enumerate() {
+            let x = li.at(er.range[0] + u * (er.range[1] - er.range[0]));
+            let sees = lj.side(x) > 0.0;
+            if sees && !occ.is_empty() {
+                if let Some(rj) = range_j {
+                    visible_from(x, lj, rj, &occ, &mut pieces);
+                } else {
+                    pieces.clear();
+                }
+            }
+            for (b, &v) in rule.nodes.iter().enumerate() {
+                let t = es.range[0] + v * (es.range[1] - es.range[0]);
+                let visible =
+                    sees && (occ.is_empty() || pieces.iter().any(|p| p[0] <= t && t <= p[1]));
+                kv[a * q + b] = if visible {
+                    kernel::flatland(x, li.n, lj.at(t), lj.n)
+                } else {
+                    0.0
+                };
+            }
+        }
+        // project onto φ_p(u) φ_q(v), p, q ≤ m, and measure what is left
+        let mut phi = vec![0.0; q * k];
+        for (a, &u) in rule.nodes.iter().enumerate() {
+            legendre(u, &mut phi[a * k..(a + 1) * k]);
+        }
+        let w = &rule.weights;
+        let mut c = vec![0.0; k * k];
+        for a in 0..q {
+            for b in 0..q {
+                let f = w[a] * w[b] * kv[a * q + b];
+                for p in 0..k {
+                    for r2 in 0..k {
+                        c[p * k + r2] += f * phi[a * k + p] * phi[b * k + r2];
+                    }
+                }
+            }
+        }
+        let mut resid = 0.0;
+        for a in 0..q {
+            for b in 0..q {
+                let mut fit = 0.0;
+                for p in 0..k {
+                    for r2 in 0..k {
+                        fit += c[p * k + r2] * phi[a * k + p] * phi[b * k + r2];
+                    }
+                }
+                resid += w[a] * w[b] * (kv[a * q + b] - fit).powi(2);
+            }
+        }
+        (resid * self.length(r) * self.length(s)).sqrt()
+    }
+
+    /// Links r ← s, refining where the oracle asks; new links have an empty transfer.
+    fn refine(&mut self, r: usize, s: usize, emission_only: bool) {
+        if !self.facing(r, s) {
+            return;
+        }
+        let (lr, ls) = (self.elements[r].level, self.elements[s].level);
+        let at_bottom = lr >= self.max_level && ls >= self.max_level;
+        if at_bottom || self.estimate(r, s, emission_only) <= self.threshold {
+            self.links.push(Link {
+                r,
+                s,
+                t: Vec::new(),
+            });
+            return;
+        }
+        let split_receiver =
+            ls >= self.max_level || (lr < self.max_level && self.length(r) >= self.length(s));
+        if split_receiver {
+            for c in self.split(r) {
+                self.refine(c, s, emission_only);
+            }
+        } else {
+            for c in self.split(s) {
+                self.refine(r, c, emission_only);
+            }
+        }
+    }
+
+    /// Computes the transfers of the links that have none, in parallel.
+    fn transfers(&mut self) -> u64 {
+        let k = self.k;
+        let (geo, elements, order, quadrature) =
+            (&self.geo, &self.elements, self.order, self.quadrature);
+        self.links
+            .par_iter_mut()
+            .filter(|l| l.t.is_empty())
+            .map(|l| {
+                let (er, es) = (&elements[l.r], &elements[l.s]);
+                let pair = geo.pair(er.surface, es.surface);
+                let mut t = vec![0.0; k * k];
+                let evals = match (pair.front_i, pair.front_j) {
+                    (Some(fi), Some(fj)) => CellPair::between(
+                        geo,
+                        (er.surface, er.range),
+                        (es.surface, es.range),
+                        order,
+                        quadrature,
+                        pair,
+                    )
+                    .integrate(fi, fj, &mut t),
+                    _ => 0,
+                };
+                l.t = t;
+                evals
+            })
+            .sum()
+    }
+
+    /// One refinement pass over the existing links against the current B; whether any changed.
+    fn rerefine(&mut self) -> bool {
+        let old = std::mem::take(&mut self.links);
+        let mut changed = false;
+        for link in old {
+            let (lr, ls) = (self.elements[link.r].level, self.elements[link.s].level);
+            let at_bottom = lr >= self.max_level && ls >= self.max_level;
+            if at_bottom || self.estimate(link.r, link.s, false) <= self.threshold {
+                self.links.push(link);
+            } else {
+                changed = true;
+                let (r, s) = (link.r, link.s);
+                let split_receiver = ls >= self.max_level
+                    || (lr < self.max_level && self.length(r) >= self.length(s));
+                if split_receiver {
+                    for c in self.split(r) {
+                        self.refine(c, s, false);
+                    }
+                } else {
+                    for c in self.split(s) {
+                        self.refine(r, c, false);
+                    }
+                }
+            }
+        }
+        changed
+    }
+
+    /// One Jacobi sweep: gather over the links, then push–pull every tree. Returns the change
+    /// of B at the leaves and the norm of the new B (squared sums).
+    fn sweep(&mut self) -> (f64, f64) {
+        let k = self.k;
+        for e in &mut self.elements {
+            e.h.iter_mut().for_each(|v| *v = [0.0; 3]);
+        }
+        // links are grouped by receiver only loosely: accumulate sequentially (deterministic)
+        let gathered: Vec<(usize, Vec<Rgb>)> = self
+            .links
+            .par_iter()
+            .map(|l| {
+                let bs = &self.elements[l.s].b;
+                let mut out = vec![[0.0; 3]; k];
+                for p in 0..k {
+                    for q in 0..k {
+                        let t = l.t[p * k + q];
+                        for c in 0..3 {
+                            out[p][c] += t * bs[q][c];
+                        }
+                    }
+                }
+                (l.r, out)
+            })
+            .collect();
+        for (r, h) in gathered {
+            for p in 0..k {
+                for c in 0..3 {
+                    self.elements[r].h[p][c] += h[p][c];
+                }
+            }
+        }
+        let (mut change, mut norm) = (0.0, 0.0);
+        for root in 0..self.segments.len() {
+            let zero = vec![[0.0; 3]; k];
+            self.push_pull(root, &zero, &mut change, &mut norm);
+        }
+        (change, norm)
+    }
+
+    fn push_pull(&mut self, e: usize, above: &[Rgb], change: &mut f64, norm: &mut f64) {
+        let k = self.k;
+        let total: Vec<Rgb> = (0..k)
+            .map(|p| [0, 1, 2].map(|c| self.elements[e].h[p][c] + above[p][c]))
+            .collect();
+        match self.elements[e].children {
+            None => {
+                let rho = self.segments[self.elements[e].surface].material.reflectance;
+                let el = &mut self.elements[e];
+                for p in 0..k {
+                    for c in 0..3 {
+                        let new = el.e[p][c] + rho[c] * total[p][c];
+                        *change += (new - el.b[p][c]).powi(2);
+                        *norm += new * new;
+                        el.b[p][c] = new;
+                    }
+                }
+                el.h_total = total;
+            }
+            Some([a, b]) => {
+                let (da, db) = (self.down(&total, 0), self.down(&total, 1));
+                self.push_pull(a, &da, change, norm);
+                self.push_pull(b, &db, change, norm);
+                let up = self.up(&self.elements[a].b, &self.elements[b].b);
+                self.elements[e].b = up;
+            }
+        }
+    }
+
+    fn solve(
+        &mut self,
+        settings: Settings,
+        history: &mut Vec<f64>,
+        progress: &dyn Progress,
+    ) -> Result<bool, JobError> {
+        for _ in 0..settings.max_iterations {
+            progress.check()?;
+            let (change, norm) = self.sweep();
+            let rel = if norm > 0.0 {
+                (change / norm).sqrt()
+            } else {
+                change.sqrt()
+            };
+            history.push(rel);
+            if !rel.is_finite() {
+                return Err(SolveError::Diverged {
+                    iteration: history.len(),
+                    reason: "B is no longer finite".into(),
+                }
+                .into());
+            }
+            if history.len() > 50
+                && history[history.len() - 50..]
+                    .windows(2)
+                    .all(|w| w[1] > w[0])
+            {
+                return Err(SolveError::Diverged {
+                    iteration: history.len(),
+                    reason: "the change between sweeps has grown for 50 sweeps".into(),
+                }
+                .into());
+            }
+            if rel < settings.tolerance {
+                return Ok(true);
+            }
+        }
+        Ok(false)
+    }
+
+    fn leaves_of(&self, surface: usize) -> Vec<usize> {
+        let mut out = Vec::new();
+        let mut stack = vec![surface];
+        while let Some(e) = stack.pop() {
+            match self.elements[e].children {
+                None => out.push(e),
+                Some([a, b]) => {
+                    stack.push(b);
+                    stack.push(a);
+                }
+            }
+        }
+        out
+    }
+
+    /// A field per surface from the leaves' coefficients chosen by `pick`.
+    fn fields(&self, resolution: usize, pick: impl Fn(&Element) -> &Vec<Rgb>) -> Vec<Field> {
+        (0..self.segments.len())
+            .map(|i| {
+                let leaves = self
+                    .leaves_of(i)
+                    .into_iter()
+                    .map(|e| {
+                        let el = &self.elements[e];
+                        let f = 1.0 / self.length(e).sqrt();
+                        Leaf {
+                            s: el.range,
+                            t: [0.0, 1.0],
+                            coeffs: pick(el).iter().map(|v| v.map(|x| x * f)).collect(),
+                        }
+                    })
+                    .collect();
+                Field::from_leaves(1, self.order, resolution, leaves)
+            })
+            .collect()
+    }
+}
+
+/// Solves a flatland scene by hierarchical wavelet radiosity.
+pub fn solve(
+    segments: &[Segment],
+    order: usize,
+    resolution: usize,
+    quadrature: usize,
+    epsilon: f64,
+    settings: Settings,
+    progress: &dyn Progress,
+) -> Result<Solution, JobError> {
+    let start = Instant::now();
+    let mut timings = BTreeMap::new();
+    let mut h = Hierarchy::new(segments, order, resolution, quadrature, epsilon);
+    progress.report(Phase::Refinement, 0.0);
+    let roots = segments.len();
+    for r in 0..roots {
+        for s in 0..roots {
+            h.refine(r, s, true);
+        }
+    }
+    let mut evaluations = h.transfers();
+    let mut history = Vec::new();
+    let mut converged = h.solve(settings, &mut history, progress)?;
+    for pass in 0..MAX_PASSES {
+        progress.check()?;
+        progress.report(
+            Phase::Refinement,
+            (pass + 1) as f64 / (MAX_PASSES + 1) as f64,
+        );
+        if !h.rerefine() {
+            break;
+        }
+        h.refinements += 1;
+        evaluations += h.transfers();
+        converged = h.solve(settings, &mut history, progress)?;
+    }
+    timings.insert("solve".to_string(), start.elapsed().as_secs_f64() * 1e3);
+    progress.report(Phase::Solve, 1.0);
+    let k = h.k;
+    let leaves: usize = (0..roots).map(|i| h.leaves_of(i).len()).sum();
+    let levels = h.elements.iter().map(|e| e.level).max().unwrap_or(0) as usize + 1;
+    let mut mags: Vec<f64> = h
+        .links
+        .iter()
+        .flat_map(|l| l.t.iter().map(|v| v.abs()))
+        .collect();
+    mags.sort_by(|a, b| b.total_cmp(a));
+    let ranks = crate::compress::sample_ranks(mags.len(), 256);
+    let magnitudes = ranks.iter().map(|&r| (r, mags[r])).collect();
+    let stats = HierarchyStats {
+        elements: h.elements.len(),
+        leaves,
+        links: h.links.len(),
+        levels,
+        refinements: h.refinements,
+        rays: 0,
+    };
+    let fields = h.fields(resolution, |e| &e.b);
+    let emission = h.fields(resolution, |e| &e.e);
+    let irradiance = h.fields(resolution, |e| &e.h_total);
+    let residual = history.last().copied().unwrap_or(0.0);
+    Ok(Solution {
+        fields,
+        emission,
+        irradiance,
+        basis_size: leaves * k,
+        matrix_entries: h.links.len() * k * k,
+        kept_entries: mags.iter().filter(|v| **v > 0.0).count(),
+        cut: 0.0,
+        magnitudes,
+        picture: None,
+        solved: Solved {
+            b: Vec::new(),
+            iterations: history.len(),
+            residual,
+            history,
+            converged,
+        },
+        kernel_error: None,
+        left_out: Vec::new(),
+        hierarchy: Some(stats),
+        timings,
+        kept_squares: Vec::new(),
+        kernel_evaluations: evaluations,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{parse_value, Limits, SceneKind};
+
+    fn square() -> Vec<Segment> {
+        let doc = serde_json::json!({"scene": {"kind": "flatland", "surfaces": [
+            {"name": "a", "segment": [[0, 0], [1, 0]], "reflectance": 0.5, "emission": 1},
+            {"name": "b", "segment": [[1, 0], [1, 1]], "reflectance": 0.5, "emission": 1},
+            {"name": "c", "segment": [[1, 1], [0, 1]], "reflectance": 0.5, "emission": 1},
+            {"name": "d", "segment": [[0, 1], [0, 0]], "reflectance": 0.5, "emission": 1}]}});
+        match parse_value(&doc, &Limits::default()).unwrap().scene.kind {
+            SceneKind::Flatland(s) => s,
+            _ => unreachable!(),
+        }
+    }
+
+    /// Every link set covers each pair of surfaces exactly once; when every link is between
+    /// leaves, B = 1 in a closed room gathers H = 1 (∫K = 1) at every leaf.
+    #[test]
+    fn links_partition_the_interactions_and_conserve_energy() {
+        let segs = square();
+        let mut h = Hierarchy::new(&segs, 0, 4, 2, 1e-12);
+        for r in 0..4 {
+            for s in 0..4 {
+                h.refine(r, s, true);
+            }
+        }
+        h.transfers();
+        for e in &mut h.elements {
+            e.b = vec![[1.0; 3]];
+        }
+        for pass in 0..3 {
+            // B = 1 everywhere, in every element's coefficients
+            for i in 0..h.elements.len() {
+                let len = h.length(i);
+                h.elements[i].b = vec![[len.sqrt(); 3]];
+            }
+            let mut covered = [0.0; 16];
+            for l in &h.links {
+                let (er, es) = (&h.elements[l.r], &h.elements[l.s]);
+                covered[er.surface * 4 + es.surface] +=
+                    (er.range[1] - er.range[0]) * (es.range[1] - es.range[0]);
+            }
+            for i in 0..4 {
+                for j in 0..4 {
+                    let want = if i == j { 0.0 } else { 1.0 };
+                    assert!(
+                        (covered[i * 4 + j] - want).abs() < 1e-12,
+                        "pass {pass} ({i},{j}): {}",
+                        covered[i * 4 + j]
+                    );
+                }
+            }
+            assert!(h
+                .links
+                .iter()
+                .all(|l| h.elements[l.r].children.is_none() && h.elements[l.s].children.is_none()));
+            h.sweep();
+            for i in 0..4 {
+                for leaf in h.leaves_of(i) {
+                    let hv = h.elements[leaf].h_total[0][0] / h.length(leaf).sqrt();
+                    assert!(
+                        (hv - 1.0).abs() < 1e-9,
+                        "pass {pass} leaf {leaf} {:?}: H = {hv}",
+                        h.elements[leaf].range
+                    );
+                }
+            }
+            for e in &mut h.elements {
+                e.b = vec![[1.0; 3]];
+            }
+            h.rerefine();
+            h.transfers();
+        }
+    }
+}
+
+#[cfg(test)]
+mod transfer_check {
+    use super::*;
+
+    #[test]
+    fn unequal_cells_agree_with_uniform_cells() {
+        let segs = tests_square();
+        let geo = Geometry::new(&segs);
+        // floor [0, 1/16] against left wall [0.5, 1] (the corner is at the wall's t = 1)
+        let pair = geo.pair(0, 3);
+        let (fi, fj) = (pair.front_i.unwrap(), pair.front_j.unwrap());
+        let mut big = [0.0];
+        CellPair::between(&geo, (0, [0.0, 1.0 / 16.0]), (3, [0.5, 1.0]), 0, 2, pair)
+            .integrate(fi, fj, &mut big);
+        let mut sum = 0.0;
+        for b in 8..16 {
+            let mut t = [0.0];
+            CellPair::between(
+                &geo,
+                (0, [0.0, 1.0 / 16.0]),
+                (3, [b as f64 / 16.0, (b + 1) as f64 / 16.0]),
+                0,
+                2,
+                pair,
+            )
+            .integrate(fi, fj, &mut t);
+            // ∫∫K = T √(|r||s|)
+            sum += t[0] * (1.0 / 16.0f64 * 1.0 / 16.0).sqrt();
+        }
+        let whole = big[0] * (1.0 / 16.0f64 * 0.5).sqrt();
+        assert!((whole - sum).abs() < 1e-10 * sum, "{whole} vs {sum}");
+    }
+
+    fn tests_square() -> Vec<Segment> {
+        let doc = serde_json::json!({"scene": {"kind": "flatland", "surfaces": [
+            {"name": "a", "segment": [[0, 0], [1, 0]], "reflectance": 0.5, "emission": 1},
+            {"name": "b", "segment": [[1, 0], [1, 1]], "reflectance": 0.5, "emission": 1},
+            {"name": "c", "segment": [[1, 1], [0, 1]], "reflectance": 0.5, "emission": 1},
+            {"name": "d", "segment": [[0, 1], [0, 0]], "reflectance": 0.5, "emission": 1}]}});
+        match crate::scene::parse_value(&doc, &crate::scene::Limits::default())
+            .unwrap()
+            .scene
+            .kind
+        {
+            crate::scene::SceneKind::Flatland(s) => s,
+            _ => unreachable!(),
+        }
+    }
+}
