@@ -24,3 +24,5 @@ pub mod result;
 pub mod scene;
 pub mod solve;
 pub mod visibility;
+pub mod render;
+pub mod server;
