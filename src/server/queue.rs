@@ -515,32 +515,29 @@ impl Queue {
         }));
         inner.metrics.solve_seconds.observe(start.elapsed().as_secs_f64());
         let stop = entry.stop.load(Ordering::SeqCst);
-        let failure = |kind: &str, title: &str, status: StatusCode, detail: String| {
+        // The final status is written to the store before it is published, so that whoever
+        // sees `succeeded` can read the result.
+        let mut status = entry.status();
+        let mut failure = |kind: &str, title: &str, code: StatusCode, detail: String| {
             tracing::warn!(id = %entry.id, %detail, "job failed");
-            entry.status.send_modify(|s| {
-                s.state = JobState::Failed;
-                s.finished_ms = Some(now_ms());
-                s.error = Some(JobFailure::new(kind, title, status, detail));
-            });
+            status.state = JobState::Failed;
+            status.finished_ms = Some(now_ms());
+            status.error = Some(JobFailure::new(kind, title, code, detail));
         };
         let mut files = Vec::new();
         match run {
             Ok(Ok((json, images))) => {
                 files.push(("result.json".to_string(), json));
                 files.extend(images.files().into_iter().map(|(n, b)| (n, b.to_vec())));
-                entry.status.send_modify(|s| {
-                    s.state = JobState::Succeeded;
-                    s.finished_ms = Some(now_ms());
-                    s.progress = ProgressInfo { phase: "done".into(), fraction: 1.0 };
-                });
+                status.state = JobState::Succeeded;
+                status.finished_ms = Some(now_ms());
+                status.progress = ProgressInfo { phase: "done".into(), fraction: 1.0 };
                 tracing::info!(id = %entry.id, seconds = start.elapsed().as_secs_f64(), "job succeeded");
             }
             Ok(Err(JobError::Cancelled)) if stop == SHUTDOWN => {
-                entry.status.send_modify(|s| {
-                    s.state = JobState::Queued;
-                    s.started_ms = None;
-                    s.progress = queued();
-                });
+                status.state = JobState::Queued;
+                status.started_ms = None;
+                status.progress = queued();
             }
             Ok(Err(JobError::Cancelled)) if watch.timed_out.load(Ordering::SeqCst) => failure(
                 "timeout",
@@ -562,14 +559,19 @@ impl Queue {
         }
         if entry.stop.load(Ordering::SeqCst) != CANCEL {
             let files: Vec<(String, &[u8])> = files.iter().map(|(n, b)| (n.clone(), b.as_slice())).collect();
-            self.persist(&entry, &files);
+            self.write(&entry, status.clone(), &files);
+            entry.status.send_replace(status);
         }
         inner.running.fetch_sub(1, Ordering::SeqCst);
         inner.idle.notify_waiters();
     }
 
     fn persist(&self, entry: &Entry, files: &[(String, &[u8])]) {
-        let record = Record { document: entry.document.clone(), status: entry.status() };
+        self.write(entry, entry.status(), files)
+    }
+
+    fn write(&self, entry: &Entry, status: JobStatus, files: &[(String, &[u8])]) {
+        let record = Record { document: entry.document.clone(), status };
         if let Err(e) = self.inner.store.put_finished(&entry.id, &record, files) {
             tracing::error!(id = %entry.id, error = %e, "could not write the job to the store");
         }
