@@ -94,6 +94,8 @@ async fn survive(signal: &str) {
         ids.push(post(&http, &server.base, &doc(i, 256)).await);
     }
     wait_for(&http, &server.base, &ids[0], &["running", "succeeded"], Duration::from_secs(60)).await;
+    // One worker, and three solves ahead of it: the last job is still waiting at the stop.
+    assert_eq!(state(&http, &server.base, &ids[3]).await, "queued");
     let pid = server.child.id().to_string();
     let killed = Command::new("kill").args([signal, &pid]).status().unwrap();
     assert!(killed.success());
