@@ -8,7 +8,11 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
 fn doc(order: usize, resolution: usize) -> Value {
-    let text = std::fs::read_to_string(format!("{}/scenes/flatland-parallel.json", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    let text = std::fs::read_to_string(format!(
+        "{}/scenes/flatland-parallel.json",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
     let mut d: Value = serde_json::from_str(&text).unwrap();
     d["solver"]["order"] = json!(order);
     d["solver"]["resolution"] = json!(resolution);
@@ -34,7 +38,9 @@ fn bench(c: &mut Criterion) {
     let mut config = wavrad::server::Config::with_data_dir(dir.path());
     config.workers = 2;
     config.queue_capacity = 1024;
-    let listener = rt.block_on(tokio::net::TcpListener::bind("127.0.0.1:0")).unwrap();
+    let listener = rt
+        .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
+        .unwrap();
     let base = format!("http://{}", listener.local_addr().unwrap());
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
     let server = rt.spawn(wavrad::server::run(listener, config, async move {
@@ -70,7 +76,9 @@ fn bench(c: &mut Criterion) {
     let medium = doc(MEDIUM.0, MEDIUM.1);
     let job = wavrad::scene::parse_value(&medium, &wavrad::scene::Limits::default()).unwrap();
     let mut group = c.benchmark_group("overhead");
-    group.sample_size(20).measurement_time(Duration::from_secs(12));
+    group
+        .sample_size(20)
+        .measurement_time(Duration::from_secs(12));
     group.bench_function("job::run directly", |b| {
         b.iter(|| wavrad::job::run(&job, &wavrad::progress::Silent).unwrap())
     });

@@ -26,9 +26,7 @@ enum Command {
         out: PathBuf,
     },
     /// Check a job document: prints every error as `PATH: message`; exit 2 when invalid.
-    Validate {
-        doc: PathBuf,
-    },
+    Validate { doc: PathBuf },
 }
 
 fn main() -> ExitCode {

@@ -20,7 +20,10 @@ async fn call(app: &Router, req: Request<Body>) -> (StatusCode, HeaderMap, Bytes
 }
 
 fn post(uri: &str, body: impl Into<Body>) -> Request<Body> {
-    Request::post(uri).header(header::CONTENT_TYPE, "application/json").body(body.into()).unwrap()
+    Request::post(uri)
+        .header(header::CONTENT_TYPE, "application/json")
+        .body(body.into())
+        .unwrap()
 }
 
 fn get(uri: &str) -> Request<Body> {
@@ -28,7 +31,8 @@ fn get(uri: &str) -> Request<Body> {
 }
 
 fn json(bytes: &Bytes) -> Value {
-    serde_json::from_slice(bytes).unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(bytes)))
+    serde_json::from_slice(bytes)
+        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(bytes)))
 }
 
 /// Asserts a problem document with this status.
@@ -86,14 +90,26 @@ async fn a_job_runs_and_yields_its_result_and_images() {
         &wavrad::progress::Silent,
     )
     .unwrap();
-    assert_eq!(result["surfaces"][1]["mean"][0].as_f64().unwrap(), direct.result.surfaces[1].mean[0]);
+    assert_eq!(
+        result["surfaces"][1]["mean"][0].as_f64().unwrap(),
+        direct.result.surfaces[1].mean[0]
+    );
 
-    for path in ["image.png", "sparsity.png", "coefficients.png", "surfaces/top.png", "surfaces/bottom.png"] {
+    for path in [
+        "image.png",
+        "sparsity.png",
+        "coefficients.png",
+        "surfaces/top.png",
+        "surfaces/bottom.png",
+    ] {
         let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}/{path}"))).await;
         assert_eq!(st, StatusCode::OK, "{path}");
         assert_eq!(h[header::CONTENT_TYPE], "image/png");
         assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n");
-        assert!(h[header::CACHE_CONTROL].to_str().unwrap().contains("immutable"));
+        assert!(h[header::CACHE_CONTROL]
+            .to_str()
+            .unwrap()
+            .contains("immutable"));
         let etag = h[header::ETAG].clone();
         let again = Request::get(format!("/api/v1/jobs/{id}/{path}"))
             .header(header::IF_NONE_MATCH, etag)
@@ -103,7 +119,12 @@ async fn a_job_runs_and_yields_its_result_and_images() {
         assert_eq!(st, StatusCode::NOT_MODIFIED);
         assert!(b.is_empty());
     }
-    let img = image::load_from_memory(&call(&router, get(&format!("/api/v1/jobs/{id}/image.png"))).await.2).unwrap();
+    let img = image::load_from_memory(
+        &call(&router, get(&format!("/api/v1/jobs/{id}/image.png")))
+            .await
+            .2,
+    )
+    .unwrap();
     assert_eq!((img.width(), img.height()), (512, 512));
 
     // The same document again: the same job, finished at once.
@@ -119,7 +140,13 @@ async fn a_job_runs_and_yields_its_result_and_images() {
     assert_eq!(list.as_array().unwrap().len(), 1);
     assert_eq!(list[0]["id"], id);
 
-    let (st, _, _) = call(&router, Request::delete(format!("/api/v1/jobs/{id}")).body(Body::empty()).unwrap()).await;
+    let (st, _, _) = call(
+        &router,
+        Request::delete(format!("/api/v1/jobs/{id}"))
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, StatusCode::NO_CONTENT);
     let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}"))).await;
     problem(st, &h, &b, StatusCode::NOT_FOUND);
@@ -138,7 +165,12 @@ async fn jobs_are_listed_newest_first() {
         wait_until(&state, id, |s| s.is_final()).await;
     }
     let list = json(&call(&router, get("/api/v1/jobs?limit=2")).await.2);
-    let got: Vec<&str> = list.as_array().unwrap().iter().map(|s| s["id"].as_str().unwrap()).collect();
+    let got: Vec<&str> = list
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["id"].as_str().unwrap())
+        .collect();
     assert_eq!(got, vec![ids[2].as_str(), ids[1].as_str()]);
 }
 
@@ -152,7 +184,10 @@ async fn bad_bodies_get_their_own_status_as_problem_documents() {
         let (st, h, b) = call(&router, post(uri, vec![b'"', 0xff, 0xfe, b'"'])).await;
         problem(st, &h, &b, StatusCode::BAD_REQUEST);
         // 415: wrong or missing content type.
-        let req = Request::post(uri).header(header::CONTENT_TYPE, "text/plain").body(Body::from("{}")).unwrap();
+        let req = Request::post(uri)
+            .header(header::CONTENT_TYPE, "text/plain")
+            .body(Body::from("{}"))
+            .unwrap();
         let (st, h, b) = call(&router, req).await;
         problem(st, &h, &b, StatusCode::UNSUPPORTED_MEDIA_TYPE);
         let req = Request::post(uri).body(Body::from("{}")).unwrap();
@@ -162,7 +197,12 @@ async fn bad_bodies_get_their_own_status_as_problem_documents() {
         let big = json!({"scene": {"kind": "fredholm", "name": "x".repeat(5000)}}).to_string();
         let (st, h, b) = call(&router, post(uri, big.clone())).await;
         problem(st, &h, &b, StatusCode::PAYLOAD_TOO_LARGE);
-        let chunks = futures_util::stream::iter(big.into_bytes().chunks(1000).map(|c| Ok::<_, std::io::Error>(c.to_vec())).collect::<Vec<_>>());
+        let chunks = futures_util::stream::iter(
+            big.into_bytes()
+                .chunks(1000)
+                .map(|c| Ok::<_, std::io::Error>(c.to_vec()))
+                .collect::<Vec<_>>(),
+        );
         let (st, h, b) = call(&router, post(uri, Body::from_stream(chunks))).await;
         problem(st, &h, &b, StatusCode::PAYLOAD_TOO_LARGE);
         // 422: every path at fault.
@@ -172,8 +212,17 @@ async fn bad_bodies_get_their_own_status_as_problem_documents() {
         doc["solver"]["typo"] = json!(true);
         let (st, h, b) = call(&router, post(uri, doc.to_string())).await;
         let p = problem(st, &h, &b, StatusCode::UNPROCESSABLE_ENTITY);
-        let paths: Vec<&str> = p["errors"].as_array().unwrap().iter().map(|e| e["path"].as_str().unwrap()).collect();
-        for expected in ["/scene/surfaces/1/reflectance", "/solver/order", "/solver/typo"] {
+        let paths: Vec<&str> = p["errors"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e["path"].as_str().unwrap())
+            .collect();
+        for expected in [
+            "/scene/surfaces/1/reflectance",
+            "/solver/order",
+            "/solver/typo",
+        ] {
             assert!(paths.contains(&expected), "{expected} not in {paths:?}");
         }
     }
@@ -194,11 +243,25 @@ async fn a_document_larger_than_the_basis_limit_is_refused_before_any_work() {
 async fn unknown_jobs_and_routes_are_404() {
     let (_dir, _state, router) = setup(|_| {});
     let id = "0123456789abcdef0123456789abcdef";
-    for path in ["", "/events", "/result", "/image.png", "/sparsity.png", "/coefficients.png", "/surfaces/top.png"] {
+    for path in [
+        "",
+        "/events",
+        "/result",
+        "/image.png",
+        "/sparsity.png",
+        "/coefficients.png",
+        "/surfaces/top.png",
+    ] {
         let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}{path}"))).await;
         problem(st, &h, &b, StatusCode::NOT_FOUND);
     }
-    let (st, h, b) = call(&router, Request::delete(format!("/api/v1/jobs/{id}")).body(Body::empty()).unwrap()).await;
+    let (st, h, b) = call(
+        &router,
+        Request::delete(format!("/api/v1/jobs/{id}"))
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
     problem(st, &h, &b, StatusCode::NOT_FOUND);
     let (st, h, b) = call(&router, get("/no/such/route")).await;
     problem(st, &h, &b, StatusCode::NOT_FOUND);
@@ -212,22 +275,41 @@ async fn artifacts_before_success_are_409_and_a_running_job_cancels_within_a_sec
     let id = s["id"].as_str().unwrap().to_string();
     let running = wait_until(&state, &id, |s| s == JobState::Running).await;
     assert_eq!(running.state, JobState::Running);
-    for path in ["/result", "/image.png", "/sparsity.png", "/coefficients.png", "/surfaces/top.png"] {
+    for path in [
+        "/result",
+        "/image.png",
+        "/sparsity.png",
+        "/coefficients.png",
+        "/surfaces/top.png",
+    ] {
         let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}{path}"))).await;
         problem(st, &h, &b, StatusCode::CONFLICT);
     }
-    let (_, _, b) = call(&router, get(&format!("/api/v1/jobs/{id}/surfaces/nope.png"))).await;
+    let (_, _, b) = call(
+        &router,
+        get(&format!("/api/v1/jobs/{id}/surfaces/nope.png")),
+    )
+    .await;
     assert_eq!(json(&b)["status"], 404);
     let (_, _, b) = call(&router, get(&format!("/api/v1/jobs/{id}/other.png"))).await;
     assert_eq!(json(&b)["status"], 404);
 
     let entry = state.queue.get(&id).unwrap();
     let t = Instant::now();
-    let (st, _, _) = call(&router, Request::delete(format!("/api/v1/jobs/{id}")).body(Body::empty()).unwrap()).await;
+    let (st, _, _) = call(
+        &router,
+        Request::delete(format!("/api/v1/jobs/{id}"))
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, StatusCode::NO_CONTENT);
     // The solver thread lets go of the job when its solve has stopped.
     while std::sync::Arc::strong_count(&entry) > 1 {
-        assert!(t.elapsed() < Duration::from_secs(1), "the solve did not stop within a second");
+        assert!(
+            t.elapsed() < Duration::from_secs(1),
+            "the solve did not stop within a second"
+        );
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
     assert_eq!(entry.status().state, JobState::Cancelled);
@@ -242,13 +324,31 @@ async fn a_full_queue_answers_429_with_retry_after_and_readyz_503() {
         c.queue_capacity = 1;
     });
     let (_, _, s) = submit(&router, &named("slow running")).await;
-    wait_until(&state, s["id"].as_str().unwrap(), |s| s == JobState::Running).await;
+    wait_until(&state, s["id"].as_str().unwrap(), |s| {
+        s == JobState::Running
+    })
+    .await;
     let (st, _, _) = submit(&router, &named("slow waiting")).await;
     assert_eq!(st, StatusCode::ACCEPTED);
-    let (st, h, b) = call(&router, post("/api/v1/jobs", named("slow refused").to_string())).await;
+    let (st, h, b) = call(
+        &router,
+        post("/api/v1/jobs", named("slow refused").to_string()),
+    )
+    .await;
     problem(st, &h, &b, StatusCode::TOO_MANY_REQUESTS);
-    assert!(h[header::RETRY_AFTER].to_str().unwrap().parse::<u64>().unwrap() > 0);
-    let (st, h, b) = call(&router, post("/api/v1/render", named("slow refused").to_string())).await;
+    assert!(
+        h[header::RETRY_AFTER]
+            .to_str()
+            .unwrap()
+            .parse::<u64>()
+            .unwrap()
+            > 0
+    );
+    let (st, h, b) = call(
+        &router,
+        post("/api/v1/render", named("slow refused").to_string()),
+    )
+    .await;
     problem(st, &h, &b, StatusCode::SERVICE_UNAVAILABLE);
     assert!(h.contains_key(header::RETRY_AFTER));
     let (st, _, _) = call(&router, get("/readyz")).await;
@@ -274,7 +374,11 @@ async fn a_panicking_solve_fails_its_job_alone() {
     let (_, _, s) = submit(&router, &named("after the panic")).await;
     let ok = wait_until(&state, s["id"].as_str().unwrap(), |s| s.is_final()).await;
     assert_eq!(ok.state, JobState::Succeeded);
-    let (st, h, b) = call(&router, post("/api/v1/render", named("panic sync").to_string())).await;
+    let (st, h, b) = call(
+        &router,
+        post("/api/v1/render", named("panic sync").to_string()),
+    )
+    .await;
     let p = problem(st, &h, &b, StatusCode::INTERNAL_SERVER_ERROR);
     assert!(p["detail"].as_str().unwrap().contains("panicked"));
 }
@@ -324,7 +428,10 @@ async fn events_stream_the_status_until_the_job_ends() {
     // A finished job: one event, then the stream closes.
     let (_, _, b) = call(&router, get(&format!("/api/v1/jobs/{id}/events"))).await;
     assert_eq!(String::from_utf8_lossy(&b).matches("data: ").count(), 1);
-    assert_eq!(state.queue.get(id).unwrap().status().state, JobState::Succeeded);
+    assert_eq!(
+        state.queue.get(id).unwrap().status().state,
+        JobState::Succeeded
+    );
 }
 
 #[tokio::test(flavor = "multi_thread")]
@@ -349,7 +456,11 @@ async fn render_answers_png_or_json_at_once() {
 #[tokio::test(flavor = "multi_thread")]
 async fn render_answers_503_past_the_sync_timeout() {
     let (_dir, state, router) = setup(|c| c.sync_timeout = Duration::from_millis(200));
-    let (st, h, b) = call(&router, post("/api/v1/render", named("slow sync").to_string())).await;
+    let (st, h, b) = call(
+        &router,
+        post("/api/v1/render", named("slow sync").to_string()),
+    )
+    .await;
     problem(st, &h, &b, StatusCode::SERVICE_UNAVAILABLE);
     assert!(h.contains_key(header::RETRY_AFTER));
     for s in state.queue.list(10) {
@@ -361,7 +472,9 @@ async fn render_answers_503_past_the_sync_timeout() {
 async fn load_is_shed_beyond_the_concurrency_limit() {
     let (_dir, state, router) = setup(|c| c.max_concurrent_requests = 1);
     let r = router.clone();
-    let busy = tokio::spawn(async move { call(&r, post("/api/v1/render", named("slow busy").to_string())).await });
+    let busy = tokio::spawn(async move {
+        call(&r, post("/api/v1/render", named("slow busy").to_string())).await
+    });
     let id = wavrad::server::queue::job_id(&named("slow busy"));
     loop {
         if state.queue.get(&id).is_some() {
@@ -431,21 +544,49 @@ async fn operations_routes() {
         "/metrics",
         "/",
     ] {
-        assert!(api["paths"][path].is_object(), "{path} missing from the OpenAPI document");
+        assert!(
+            api["paths"][path].is_object(),
+            "{path} missing from the OpenAPI document"
+        );
     }
     assert!(api["paths"]["/api/v1/jobs"]["post"]["responses"]["422"].is_object());
 
     let (st, h, b) = call(&router, get("/")).await;
     assert_eq!(st, StatusCode::OK);
-    assert!(h[header::CONTENT_TYPE].to_str().unwrap().starts_with("text/html"));
+    assert!(h[header::CONTENT_TYPE]
+        .to_str()
+        .unwrap()
+        .starts_with("text/html"));
     let html = String::from_utf8(b.to_vec()).unwrap();
-    for id in ["scene-select", "doc", "method", "basis", "order", "resolution", "keep-kind", "submit", "progress", "image", "sparsity", "coefficients", "surfaces-body", "metrics", "errors"] {
+    for id in [
+        "scene-select",
+        "doc",
+        "method",
+        "basis",
+        "order",
+        "resolution",
+        "keep-kind",
+        "submit",
+        "progress",
+        "image",
+        "sparsity",
+        "coefficients",
+        "surfaces-body",
+        "metrics",
+        "errors",
+    ] {
         assert!(html.contains(&format!("id=\"{id}\"")), "#{id} missing");
     }
     assert_eq!(call(&router, get("/static/app.js")).await.0, StatusCode::OK);
-    assert_eq!(call(&router, get("/static/style.css")).await.0, StatusCode::OK);
+    assert_eq!(
+        call(&router, get("/static/style.css")).await.0,
+        StatusCode::OK
+    );
     let names = json(&call(&router, get("/scenes/index.json")).await.2);
-    assert!(names.as_array().unwrap().contains(&json!("flatland-parallel")));
+    assert!(names
+        .as_array()
+        .unwrap()
+        .contains(&json!("flatland-parallel")));
     let (st, _, b) = call(&router, get("/scenes/flatland-parallel.json")).await;
     assert_eq!(st, StatusCode::OK);
     assert_eq!(json(&b), scene("flatland-parallel"));

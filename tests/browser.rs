@@ -24,7 +24,10 @@ impl Drop for Driver {
 fn find(names: &[&str]) -> Option<PathBuf> {
     let path = std::env::var_os("PATH").unwrap_or_default();
     for name in names {
-        for dir in std::env::split_paths(&path).chain([PathBuf::from("/usr/bin"), PathBuf::from("/usr/lib/chromium")]) {
+        for dir in std::env::split_paths(&path).chain([
+            PathBuf::from("/usr/bin"),
+            PathBuf::from("/usr/lib/chromium"),
+        ]) {
             let p = dir.join(name);
             if p.is_file() {
                 return Some(p);
@@ -48,9 +51,14 @@ where
 
 #[tokio::test(flavor = "multi_thread")]
 async fn the_page_solves_flatland_parallel_in_chromium() {
-    let (Some(chromedriver), Some(chromium)) = (find(&["chromedriver"]), find(&["chromium", "chromium-browser", "google-chrome"])) else {
+    let (Some(chromedriver), Some(chromium)) = (
+        find(&["chromedriver"]),
+        find(&["chromium", "chromium-browser", "google-chrome"]),
+    ) else {
         if std::env::var_os("CI").is_some() {
-            panic!("chromedriver and chromium are required under CI (apt-get install chromium chromium-driver)");
+            panic!(
+                "chromedriver and chromium are required under CI (apt-get install chromium chromium-driver)"
+            );
         }
         eprintln!("skipped: chromedriver or chromium not installed");
         return;
@@ -70,7 +78,11 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         Duration::from_millis(200),
     ));
 
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
     let _driver = Driver(
         Command::new(&chromedriver)
             .arg(format!("--port={port}"))
@@ -97,7 +109,10 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         {
             Ok(c) => break c,
             Err(e) => {
-                assert!(t.elapsed() < Duration::from_secs(30), "chromedriver did not start: {e}");
+                assert!(
+                    t.elapsed() < Duration::from_secs(30),
+                    "chromedriver did not start: {e}"
+                );
                 tokio::time::sleep(Duration::from_millis(100)).await;
             }
         }
@@ -107,7 +122,9 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
     let select = client
         .wait()
         .at_most(Duration::from_secs(20))
-        .for_element(Locator::Css("#scene-select option[value='flatland-parallel']"))
+        .for_element(Locator::Css(
+            "#scene-select option[value='flatland-parallel']",
+        ))
         .await
         .unwrap();
     drop(select);
@@ -118,16 +135,27 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         .select_by_value("flatland-parallel")
         .await
         .unwrap();
-    until("the scene in the text area", Duration::from_secs(20), || async {
-        let v = client
-            .execute("return document.getElementById('doc').value", vec![])
-            .await
-            .unwrap();
-        v.as_str().unwrap_or("").contains("parallel segments")
-    })
+    until(
+        "the scene in the text area",
+        Duration::from_secs(20),
+        || async {
+            let v = client
+                .execute("return document.getElementById('doc').value", vec![])
+                .await
+                .unwrap();
+            v.as_str().unwrap_or("").contains("parallel segments")
+        },
+    )
     .await;
     assert_eq!(
-        client.find(Locator::Id("resolution")).await.unwrap().prop("value").await.unwrap().as_deref(),
+        client
+            .find(Locator::Id("resolution"))
+            .await
+            .unwrap()
+            .prop("value")
+            .await
+            .unwrap()
+            .as_deref(),
         Some("16")
     );
 
@@ -136,7 +164,13 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         .execute("document.getElementById('order').value = '99'", vec![])
         .await
         .unwrap();
-    client.find(Locator::Id("submit")).await.unwrap().click().await.unwrap();
+    client
+        .find(Locator::Id("submit"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
     let error = client
         .wait()
         .at_most(Duration::from_secs(20))
@@ -144,7 +178,13 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         .await
         .unwrap();
     assert!(error.text().await.unwrap().contains("/solver/order"));
-    let beside = client.find(Locator::Id("order-error")).await.unwrap().text().await.unwrap();
+    let beside = client
+        .find(Locator::Id("order-error"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
     assert!(beside.contains("/solver/order"), "{beside}");
     client
         .execute("document.getElementById('order').value = '1'", vec![])
@@ -152,7 +192,13 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         .unwrap();
 
     // Submit, follow the progress, see the image and the numbers.
-    client.find(Locator::Id("submit")).await.unwrap().click().await.unwrap();
+    client
+        .find(Locator::Id("submit"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
     let cell = client
         .wait()
         .at_most(Duration::from_secs(60))
@@ -171,22 +217,58 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         v.as_bool() == Some(true)
     })
     .await;
-    assert_eq!(client.find(Locator::Id("state")).await.unwrap().text().await.unwrap(), "succeeded");
-    let id = client.find(Locator::Id("job-id")).await.unwrap().text().await.unwrap();
-    let result: Value = reqwest::get(format!("{base}/api/v1/jobs/{id}/result")).await.unwrap().json().await.unwrap();
+    assert_eq!(
+        client
+            .find(Locator::Id("state"))
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap(),
+        "succeeded"
+    );
+    let id = client
+        .find(Locator::Id("job-id"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    let result: Value = reqwest::get(format!("{base}/api/v1/jobs/{id}/result"))
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
     assert_eq!(result["surfaces"][1]["name"], "top");
     let expected = result["surfaces"][1]["mean"][0].as_f64().unwrap();
-    assert!(((shown - expected) / expected).abs() < 1e-5, "page shows {shown}, result has {expected}");
-    let iterations = client.find(Locator::Id("metric-iterations")).await.unwrap().text().await.unwrap();
+    assert!(
+        ((shown - expected) / expected).abs() < 1e-5,
+        "page shows {shown}, result has {expected}"
+    );
+    let iterations = client
+        .find(Locator::Id("metric-iterations"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
     assert_eq!(iterations, result["metrics"]["iterations"].to_string());
 
     // Phone width: nothing wider than the screen.
     client.set_window_size(390, 844).await.unwrap();
     let fits = client
-        .execute("return document.documentElement.scrollWidth <= window.innerWidth + 1", vec![])
+        .execute(
+            "return document.documentElement.scrollWidth <= window.innerWidth + 1",
+            vec![],
+        )
         .await
         .unwrap();
-    assert_eq!(fits.as_bool(), Some(true), "the page scrolls sideways at phone width");
+    assert_eq!(
+        fits.as_bool(),
+        Some(true),
+        "the page scrolls sideways at phone width"
+    );
     if let Ok(dir) = std::env::var("WAVRAD_SCREENSHOT_DIR") {
         let png = client.screenshot().await.unwrap();
         std::fs::write(PathBuf::from(dir).join("phone.png"), png).unwrap();

@@ -29,7 +29,11 @@ async fn serve(state: AppState) -> Running {
         },
         Duration::from_millis(200),
     ));
-    Running { base, stop: Some(tx), done }
+    Running {
+        base,
+        stop: Some(tx),
+        done,
+    }
 }
 
 #[tokio::test(flavor = "multi_thread")]
@@ -75,12 +79,22 @@ async fn a_real_server_answers_over_tcp_and_shuts_down_with_an_open_event_stream
         .unwrap();
     assert_eq!(res.status(), 202);
     let status: Value = res.json().await.unwrap();
-    let events = http.get(format!("{base}{}", status["links"]["events"].as_str().unwrap())).send().await.unwrap();
+    let events = http
+        .get(format!(
+            "{base}{}",
+            status["links"]["events"].as_str().unwrap()
+        ))
+        .send()
+        .await
+        .unwrap();
     assert_eq!(events.status(), 200);
     let text = String::from_utf8(events.bytes().await.unwrap().to_vec()).unwrap();
     assert!(text.contains("\"state\":\"succeeded\""), "{text}");
     let result: Value = http
-        .get(format!("{base}{}", status["links"]["result"].as_str().unwrap()))
+        .get(format!(
+            "{base}{}",
+            status["links"]["result"].as_str().unwrap()
+        ))
         .send()
         .await
         .unwrap()
@@ -110,9 +124,16 @@ async fn a_real_server_answers_over_tcp_and_shuts_down_with_an_open_event_stream
     assert!(stream.next().await.is_some(), "a first event");
     let t = std::time::Instant::now();
     server.stop.take().unwrap().send(()).unwrap();
-    tokio::time::timeout(Duration::from_secs(8), &mut server.done).await.expect("shut down in time").unwrap().unwrap();
+    tokio::time::timeout(Duration::from_secs(8), &mut server.done)
+        .await
+        .expect("shut down in time")
+        .unwrap()
+        .unwrap();
     assert!(t.elapsed() < Duration::from_secs(8));
-    while let Some(chunk) = tokio::time::timeout(Duration::from_secs(2), stream.next()).await.expect("stream ends") {
+    while let Some(chunk) = tokio::time::timeout(Duration::from_secs(2), stream.next())
+        .await
+        .expect("stream ends")
+    {
         if chunk.is_err() {
             break;
         }
@@ -127,7 +148,11 @@ async fn a_real_server_answers_over_tcp_and_shuts_down_with_an_open_event_stream
     // lets go right after the stop).
     let mut tries = 0;
     let again = loop {
-        match wavrad::server::AppState::start(c.clone(), test_solver(), tokio_util::sync::CancellationToken::new()) {
+        match wavrad::server::AppState::start(
+            c.clone(),
+            test_solver(),
+            tokio_util::sync::CancellationToken::new(),
+        ) {
             Ok(s) => break s,
             Err(e) if tries < 50 => {
                 tries += 1;
@@ -137,23 +162,51 @@ async fn a_real_server_answers_over_tcp_and_shuts_down_with_an_open_event_stream
             Err(e) => panic!("reopen: {e}"),
         }
     };
-    assert_eq!(again.queue.get(&status["id"].as_str().unwrap().to_string()).unwrap().status().state, JobState::Succeeded);
-    let restored = again.queue.get(&slow_id).expect("the stopped job is known").status();
-    assert!(matches!(restored.state, JobState::Queued | JobState::Running), "{:?}", restored.state);
+    assert_eq!(
+        again
+            .queue
+            .get(&status["id"].as_str().unwrap().to_string())
+            .unwrap()
+            .status()
+            .state,
+        JobState::Succeeded
+    );
+    let restored = again
+        .queue
+        .get(&slow_id)
+        .expect("the stopped job is known")
+        .status();
+    assert!(
+        matches!(restored.state, JobState::Queued | JobState::Running),
+        "{:?}",
+        restored.state
+    );
     again.queue.delete(&slow_id).unwrap();
 }
 
 async fn all_images(doc: &Value) -> Vec<(String, Vec<u8>)> {
     let dir = tempfile::tempdir().unwrap();
     let state = state(config(dir.path()));
-    let entry = match state.queue.submit(doc.clone(), wavrad::scene::parse_value(doc, &wavrad::scene::Limits::default()).unwrap()) {
+    let entry = match state.queue.submit(
+        doc.clone(),
+        wavrad::scene::parse_value(doc, &wavrad::scene::Limits::default()).unwrap(),
+    ) {
         Ok(wavrad::server::queue::Submitted::New(e)) => e,
         _ => panic!("a new job"),
     };
     let done = wait_until(&state, &entry.id, |s| s.is_final()).await;
     assert_eq!(done.state, JobState::Succeeded);
-    let mut names = vec!["image.png".to_string(), "sparsity.png".into(), "coefficients.png".into()];
-    names.extend(done.links.surfaces.keys().map(|s| format!("surfaces/{s}.png")));
+    let mut names = vec![
+        "image.png".to_string(),
+        "sparsity.png".into(),
+        "coefficients.png".into(),
+    ];
+    names.extend(
+        done.links
+            .surfaces
+            .keys()
+            .map(|s| format!("surfaces/{s}.png")),
+    );
     names
         .into_iter()
         .map(|n| {
@@ -186,15 +239,25 @@ async fn the_same_document_gives_byte_identical_pngs_and_the_command_line_writes
         let docfile = out.path().join("doc.json");
         std::fs::write(&docfile, doc.to_string()).unwrap();
         let status = Command::new(env!("CARGO_BIN_EXE_wavrad"))
-            .args(["render", docfile.to_str().unwrap(), "--out", out.path().join("out").to_str().unwrap()])
+            .args([
+                "render",
+                docfile.to_str().unwrap(),
+                "--out",
+                out.path().join("out").to_str().unwrap(),
+            ])
             .status()
             .unwrap();
         assert!(status.success());
         for (n, bytes) in &first {
             let written = std::fs::read(out.path().join("out").join(n)).unwrap();
-            assert!(&written == bytes, "{name}: {n} from the command line differs from the server's");
+            assert!(
+                &written == bytes,
+                "{name}: {n} from the command line differs from the server's"
+            );
         }
-        let result: Value = serde_json::from_slice(&std::fs::read(out.path().join("out/result.json")).unwrap()).unwrap();
+        let result: Value =
+            serde_json::from_slice(&std::fs::read(out.path().join("out/result.json")).unwrap())
+                .unwrap();
         assert_eq!(result["kind"], parsed.scene.kind.name());
     }
 }
@@ -203,8 +266,14 @@ async fn the_same_document_gives_byte_identical_pngs_and_the_command_line_writes
 fn validate_and_render_exit_codes() {
     let bin = env!("CARGO_BIN_EXE_wavrad");
     let dir = tempfile::tempdir().unwrap();
-    let good = format!("{}/scenes/flatland-parallel.json", env!("CARGO_MANIFEST_DIR"));
-    let out = Command::new(bin).args(["validate", &good]).output().unwrap();
+    let good = format!(
+        "{}/scenes/flatland-parallel.json",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let out = Command::new(bin)
+        .args(["validate", &good])
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(0));
 
     let mut doc = scene("flatland-parallel");
@@ -212,16 +281,37 @@ fn validate_and_render_exit_codes() {
     doc["solver"]["basis"] = json!("nope");
     let bad = dir.path().join("bad.json");
     std::fs::write(&bad, doc.to_string()).unwrap();
-    let out = Command::new(bin).args(["validate", bad.to_str().unwrap()]).output().unwrap();
+    let out = Command::new(bin)
+        .args(["validate", bad.to_str().unwrap()])
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let text = String::from_utf8(out.stdout).unwrap();
-    assert!(text.lines().any(|l| l.starts_with("/scene/surfaces/0/reflectance: ")), "{text}");
-    assert!(text.lines().any(|l| l.starts_with("/solver/basis: ")), "{text}");
-    let out = Command::new(bin).args(["render", bad.to_str().unwrap(), "--out", dir.path().join("o").to_str().unwrap()]).output().unwrap();
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("/scene/surfaces/0/reflectance: ")),
+        "{text}"
+    );
+    assert!(
+        text.lines().any(|l| l.starts_with("/solver/basis: ")),
+        "{text}"
+    );
+    let out = Command::new(bin)
+        .args([
+            "render",
+            bad.to_str().unwrap(),
+            "--out",
+            dir.path().join("o").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(2));
 
     let missing = dir.path().join("missing.json");
-    let out = Command::new(bin).args(["validate", missing.to_str().unwrap()]).output().unwrap();
+    let out = Command::new(bin)
+        .args(["validate", missing.to_str().unwrap()])
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(1));
 
     // ρK has spectral radius 3: the iteration diverges.
@@ -229,17 +319,49 @@ fn validate_and_render_exit_codes() {
         "solver": {"basis": "scaling", "order": 0, "resolution": 4}});
     let path = dir.path().join("diverging.json");
     std::fs::write(&path, diverging.to_string()).unwrap();
-    let out = Command::new(bin).args(["render", path.to_str().unwrap(), "--out", dir.path().join("d").to_str().unwrap()]).output().unwrap();
-    assert_eq!(out.status.code(), Some(3), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = Command::new(bin)
+        .args([
+            "render",
+            path.to_str().unwrap(),
+            "--out",
+            dir.path().join("d").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 
-    let out = Command::new(bin).args(["serve", "--help"]).output().unwrap();
+    let out = Command::new(bin)
+        .args(["serve", "--help"])
+        .output()
+        .unwrap();
     let help = String::from_utf8(out.stdout).unwrap();
     for flag in [
-        "--addr", "--max-body-bytes", "--max-surfaces", "--max-order", "--max-resolution", "--max-basis-functions",
-        "--max-image-pixels", "--queue-capacity", "--workers", "--job-timeout", "--sync-timeout", "--result-ttl", "--data-dir",
+        "--addr",
+        "--max-body-bytes",
+        "--max-surfaces",
+        "--max-order",
+        "--max-resolution",
+        "--max-basis-functions",
+        "--max-image-pixels",
+        "--queue-capacity",
+        "--workers",
+        "--job-timeout",
+        "--sync-timeout",
+        "--result-ttl",
+        "--data-dir",
     ] {
         assert!(help.contains(flag), "{flag} missing from --help");
-        let env = format!("WAVRAD_{}", flag.trim_start_matches("--").replace('-', "_").to_uppercase());
+        let env = format!(
+            "WAVRAD_{}",
+            flag.trim_start_matches("--")
+                .replace('-', "_")
+                .to_uppercase()
+        );
         assert!(help.contains(&env), "{env} missing from --help");
     }
 }

@@ -71,7 +71,11 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
     };
     let sparsity = match &outcome.picture {
         Some(p) => plot::sparsity(p),
-        None => plot::message(640, 560, "No kernel matrix: this method builds links, not a matrix"),
+        None => plot::message(
+            640,
+            560,
+            "No kernel matrix: this method builds links, not a matrix",
+        ),
     };
     Images {
         image: encode_png(&main),
@@ -152,7 +156,12 @@ pub fn encode_png(img: &RgbImage) -> Vec<u8> {
         image::codecs::png::CompressionType::Fast,
         image::codecs::png::FilterType::Adaptive,
     )
-    .write_image(img.as_raw(), img.width(), img.height(), image::ExtendedColorType::Rgb8)
+    .write_image(
+        img.as_raw(),
+        img.width(),
+        img.height(),
+        image::ExtendedColorType::Rgb8,
+    )
     .expect("encoding a PNG into memory cannot fail");
     out
 }

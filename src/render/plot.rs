@@ -39,7 +39,10 @@ fn register_font() {
 fn canvas<T>(w: u32, h: u32, draw: impl FnOnce(&Area<'_>) -> Drawn<T>) -> (RgbImage, T) {
     let mut buf = vec![255u8; w as usize * h as usize * 3];
     let value = draw_on(&mut buf, w, h, draw);
-    (RgbImage::from_raw(w, h, buf).expect("buffer of w × h × 3"), value)
+    (
+        RgbImage::from_raw(w, h, buf).expect("buffer of w × h × 3"),
+        value,
+    )
 }
 
 fn draw_on<T>(buf: &mut [u8], w: u32, h: u32, draw: impl FnOnce(&Area<'_>) -> Drawn<T>) -> T {
@@ -80,10 +83,10 @@ fn samples(f: &Field, channel: Option<usize>, x: impl Fn(f64) -> f64) -> Vec<(f6
 
 fn channels_differ(fields: &[Field]) -> bool {
     fields.iter().any(|f| {
-        f.leaves
-            .iter()
-            .flat_map(|l| &l.coeffs)
-            .any(|c| (c[0] - c[1]).abs() > 1e-12 * c[0].abs().max(1.0) || (c[0] - c[2]).abs() > 1e-12 * c[0].abs().max(1.0))
+        f.leaves.iter().flat_map(|l| &l.coeffs).any(|c| {
+            (c[0] - c[1]).abs() > 1e-12 * c[0].abs().max(1.0)
+                || (c[0] - c[2]).abs() > 1e-12 * c[0].abs().max(1.0)
+        })
     })
 }
 
@@ -92,11 +95,19 @@ fn channels_differ(fields: &[Field]) -> bool {
 pub fn radiosity(job: &Job, names: &[String], fields: &[Field], w: u32, h: u32) -> RgbImage {
     let (domain, xdesc, ydesc) = match &job.scene.kind {
         SceneKind::Fredholm(f) => (f.domain, "x", "B(x)"),
-        _ => ([0.0, 1.0], "s (position along the surface, 0 to 1)", "B (W/m)"),
+        _ => (
+            [0.0, 1.0],
+            "s (position along the surface, 0 to 1)",
+            "B (W/m)",
+        ),
     };
     let x = |s: f64| domain[0] + s * (domain[1] - domain[0]);
     let differ = channels_differ(fields);
-    let title = job.scene.name.clone().unwrap_or_else(|| "Radiosity".to_string());
+    let title = job
+        .scene
+        .name
+        .clone()
+        .unwrap_or_else(|| "Radiosity".to_string());
     canvas(w, h, |root| {
         root.fill(&WHITE)?;
         let root = root.titled(&title, (SANS, 18))?;
@@ -130,7 +141,11 @@ pub fn radiosity(job: &Job, names: &[String], fields: &[Field], w: u32, h: u32) 
                 .map(|(i, (f, name))| {
                     let c = Palette99::pick(i).to_rgba();
                     Series {
-                        label: if differ { format!("{name} (mean of R,G,B)") } else { name.clone() },
+                        label: if differ {
+                            format!("{name} (mean of R,G,B)")
+                        } else {
+                            name.clone()
+                        },
                         color: RGBColor(c.0, c.1, c.2),
                         points: samples(f, if differ { None } else { Some(0) }, x),
                     }
@@ -143,11 +158,20 @@ pub fn radiosity(job: &Job, names: &[String], fields: &[Field], w: u32, h: u32) 
     .0
 }
 
-fn line_chart(area: &Area<'_>, caption: &str, domain: [f64; 2], xdesc: &str, ydesc: &str, series: Vec<Series>) -> Drawn<()> {
+fn line_chart(
+    area: &Area<'_>,
+    caption: &str,
+    domain: [f64; 2],
+    xdesc: &str,
+    ydesc: &str,
+    series: Vec<Series>,
+) -> Drawn<()> {
     let (lo, hi) = series
         .iter()
         .flat_map(|s| &s.points)
-        .fold((0.0f64, f64::MIN_POSITIVE), |(lo, hi), &(_, y)| (lo.min(y), hi.max(y)));
+        .fold((0.0f64, f64::MIN_POSITIVE), |(lo, hi), &(_, y)| {
+            (lo.min(y), hi.max(y))
+        });
     let pad = (hi - lo) * 0.05;
     let small = area.dim_in_pixel().1 < 200;
     let mut chart = ChartBuilder::on(area)
@@ -155,10 +179,15 @@ fn line_chart(area: &Area<'_>, caption: &str, domain: [f64; 2], xdesc: &str, yde
         .margin(8)
         .x_label_area_size(if small { 22 } else { 40 })
         .y_label_area_size(62)
-        .build_cartesian_2d(domain[0]..domain[1], (lo - if lo < 0.0 { pad } else { 0.0 })..(hi + pad))?;
+        .build_cartesian_2d(
+            domain[0]..domain[1],
+            (lo - if lo < 0.0 { pad } else { 0.0 })..(hi + pad),
+        )?;
     let y_format = |v: &f64| format!("{v:.3}");
     let mut mesh = chart.configure_mesh();
-    mesh.label_style((SANS, 11)).y_desc(ydesc).y_label_formatter(&y_format);
+    mesh.label_style((SANS, 11))
+        .y_desc(ydesc)
+        .y_label_formatter(&y_format);
     if !small {
         mesh.x_desc(xdesc);
     }
@@ -168,7 +197,9 @@ fn line_chart(area: &Area<'_>, caption: &str, domain: [f64; 2], xdesc: &str, yde
         chart
             .draw_series(LineSeries::new(s.points, color.stroke_width(2)))?
             .label(s.label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
+            });
     }
     chart
         .configure_series_labels()
@@ -196,7 +227,11 @@ pub fn viridis(t: f64) -> RGBColor {
     let i = (t.floor() as usize).min(A.len() - 2);
     let f = t - i as f64;
     let mix = |a: u8, b: u8| (a as f64 + (b as f64 - a as f64) * f).round() as u8;
-    RGBColor(mix(A[i].0, A[i + 1].0), mix(A[i].1, A[i + 1].1), mix(A[i].2, A[i + 1].2))
+    RGBColor(
+        mix(A[i].0, A[i + 1].0),
+        mix(A[i].1, A[i + 1].1),
+        mix(A[i].2, A[i + 1].2),
+    )
 }
 
 /// The log range shown by the sparsity picture: eight decades below the largest entry.
@@ -248,12 +283,18 @@ pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
         bar.draw_series((0..steps).map(|i| {
             let a = lo * (hi / lo).powf(i as f64 / steps as f64);
             let b = lo * (hi / lo).powf((i + 1) as f64 / steps as f64);
-            Rectangle::new([(0.0, a), (1.0, b)], viridis((i as f64 + 0.5) / steps as f64).filled())
+            Rectangle::new(
+                [(0.0, a), (1.0, b)],
+                viridis((i as f64 + 0.5) / steps as f64).filled(),
+            )
         }))?;
         Ok(range)
     });
     let (x0, y0) = (xr.start.max(0) as u32, yr.start.max(0) as u32);
-    let (pw, ph) = ((xr.end - xr.start).max(1) as u32, (yr.end - yr.start).max(1) as u32);
+    let (pw, ph) = (
+        (xr.end - xr.start).max(1) as u32,
+        (yr.end - yr.start).max(1) as u32,
+    );
     let (llo, lhi) = (lo.log10(), hi.log10());
     for py in 0..ph {
         let row = (py as usize * p.side / ph as usize).min(p.side - 1);
@@ -280,7 +321,11 @@ pub fn coefficients(c: &Coefficients) -> RgbImage {
     let positive = c.sorted_magnitudes.iter().cloned().filter(|v| *v > 0.0);
     let hi = positive.clone().fold(0.0f64, f64::max);
     let lo = positive.fold(f64::INFINITY, f64::min);
-    let (lo, hi) = if hi > 0.0 { (lo.max(hi * 1e-16) / 2.0, hi * 2.0) } else { (1e-16, 1.0) };
+    let (lo, hi) = if hi > 0.0 {
+        (lo.max(hi * 1e-16) / 2.0, hi * 2.0)
+    } else {
+        (1e-16, 1.0)
+    };
     let x_max = c.matrix_entries.max(1) as f64;
     canvas(w, h, |root| {
         root.fill(&WHITE)?;
@@ -308,15 +353,28 @@ pub fn coefficients(c: &Coefficients) -> RgbImage {
         chart
             .draw_series(LineSeries::new(points, blue.stroke_width(2)))?
             .label("magnitude")
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], blue.stroke_width(2)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 16, y)], blue.stroke_width(2))
+            });
         let red = CHANNELS[0].1;
         let kept = c.kept_entries as f64;
         chart
-            .draw_series(LineSeries::new(vec![(kept, lo), (kept, hi)], red.stroke_width(2)))?
-            .label(format!("cut: {} of {} kept", c.kept_entries, c.matrix_entries))
+            .draw_series(LineSeries::new(
+                vec![(kept, lo), (kept, hi)],
+                red.stroke_width(2),
+            ))?
+            .label(format!(
+                "cut: {} of {} kept",
+                c.kept_entries, c.matrix_entries
+            ))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], red.stroke_width(2)));
         if c.cut > 0.0 {
-            chart.draw_series(DashedLineSeries::new(vec![(0.0, c.cut), (x_max, c.cut)], 6, 4, red.stroke_width(1)))?;
+            chart.draw_series(DashedLineSeries::new(
+                vec![(0.0, c.cut), (x_max, c.cut)],
+                6,
+                4,
+                red.stroke_width(1),
+            ))?;
         }
         chart
             .configure_series_labels()
@@ -340,7 +398,10 @@ pub fn surface_grid(names: &[String], fields: &[Field], white: f64, w: u32, h: u
     let mut img = RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
     for (i, f) in fields.iter().enumerate() {
         let (cx, cy) = ((i as u32 % cols) * cw, (i as u32 / cols) * ch);
-        let size = (cw.saturating_sub(4).max(1), ch.saturating_sub(label + 4).max(1));
+        let size = (
+            cw.saturating_sub(4).max(1),
+            ch.saturating_sub(label + 4).max(1),
+        );
         let tile = super::surface_image(f, white, size);
         image::imageops::replace(&mut img, &tile, (cx + 2) as i64, (cy + label + 2) as i64);
     }
@@ -348,7 +409,11 @@ pub fn surface_grid(names: &[String], fields: &[Field], white: f64, w: u32, h: u
     draw_on(&mut buf, w, h, |root| {
         for (i, name) in names.iter().enumerate() {
             let (cx, cy) = ((i as u32 % cols) * cw, (i as u32 / cols) * ch);
-            root.draw(&Text::new(name.as_str(), (cx as i32 + 4, cy as i32 + 2), (SANS, label.max(8) as f64 - 4.0).into_font()))?;
+            root.draw(&Text::new(
+                name.as_str(),
+                (cx as i32 + 4, cy as i32 + 2),
+                (SANS, label.max(8) as f64 - 4.0).into_font(),
+            ))?;
         }
         Ok(())
     });
@@ -364,4 +429,3 @@ pub fn message(w: u32, h: u32, text: &str) -> RgbImage {
     })
     .0
 }
-

@@ -40,14 +40,26 @@ impl Default for Metrics {
         let queue_depth = Gauge::default();
         let solve_seconds = Histogram::new(exponential_buckets(0.005, 2.0, 16));
         let http = Family::<HttpLabel, Counter>::default();
-        registry.register("wavrad_jobs", "Jobs known to the server, by state", jobs.clone());
-        registry.register("wavrad_queue_depth", "Jobs waiting for a worker", queue_depth.clone());
+        registry.register(
+            "wavrad_jobs",
+            "Jobs known to the server, by state",
+            jobs.clone(),
+        );
+        registry.register(
+            "wavrad_queue_depth",
+            "Jobs waiting for a worker",
+            queue_depth.clone(),
+        );
         registry.register(
             "wavrad_solve_seconds",
             "Time from the start of a solve to its end, images included",
             solve_seconds.clone(),
         );
-        registry.register("wavrad_http_requests", "HTTP requests by route and status", http.clone());
+        registry.register(
+            "wavrad_http_requests",
+            "HTTP requests by route and status",
+            http.clone(),
+        );
         Metrics {
             registry,
             jobs,
@@ -62,13 +74,18 @@ impl Metrics {
     /// The Prometheus text exposition.
     pub fn encode(&self) -> String {
         let mut out = String::new();
-        prometheus_client::encoding::text::encode(&mut out, &self.registry).expect("writing to a String cannot fail");
+        prometheus_client::encoding::text::encode(&mut out, &self.registry)
+            .expect("writing to a String cannot fail");
         out
     }
 }
 
 /// Middleware (a route layer, so that the matched route is known): counts every answer.
-pub async fn count_requests(State(metrics): State<Arc<Metrics>>, req: Request, next: Next) -> Response {
+pub async fn count_requests(
+    State(metrics): State<Arc<Metrics>>,
+    req: Request,
+    next: Next,
+) -> Response {
     let route = req
         .extensions()
         .get::<MatchedPath>()

@@ -43,7 +43,11 @@ pub struct AppState {
 
 impl AppState {
     /// Opens the store, restores its jobs and starts the queue. Needs a tokio runtime.
-    pub fn start(config: Config, solve: SolveFn, shutdown: CancellationToken) -> Result<AppState, store::StoreError> {
+    pub fn start(
+        config: Config,
+        solve: SolveFn,
+        shutdown: CancellationToken,
+    ) -> Result<AppState, store::StoreError> {
         let metrics = Arc::new(Metrics::default());
         let queue = Queue::start(config.clone(), solve, metrics.clone(), shutdown.clone())?;
         Ok(AppState {
@@ -55,8 +59,15 @@ impl AppState {
     }
 
     /// With the real solver, [`crate::job::run`].
-    pub fn with_core(config: Config, shutdown: CancellationToken) -> Result<AppState, store::StoreError> {
-        AppState::start(config, Arc::new(|job, progress| crate::job::run(job, progress)), shutdown)
+    pub fn with_core(
+        config: Config,
+        shutdown: CancellationToken,
+    ) -> Result<AppState, store::StoreError> {
+        AppState::start(
+            config,
+            Arc::new(|job, progress| crate::job::run(job, progress)),
+            shutdown,
+        )
     }
 }
 
@@ -66,9 +77,13 @@ impl AppState {
 pub fn app(state: AppState) -> Router {
     let config = state.config.clone();
     let limits = ServiceBuilder::new()
-        .layer(HandleErrorLayer::new(|e: tower::BoxError| async move { overloaded(e) }))
+        .layer(HandleErrorLayer::new(|e: tower::BoxError| async move {
+            overloaded(e)
+        }))
         .load_shed()
-        .layer(tower::limit::GlobalConcurrencyLimitLayer::new(config.max_concurrent_requests))
+        .layer(tower::limit::GlobalConcurrencyLimitLayer::new(
+            config.max_concurrent_requests,
+        ))
         .timeout(config.request_timeout());
     routes::router(state)
         .layer(RequestBodyLimitLayer::new(config.max_body_bytes))
@@ -79,10 +94,13 @@ pub fn app(state: AppState) -> Router {
 
 fn overloaded(e: tower::BoxError) -> axum::response::Response {
     if e.is::<tower::load_shed::error::Overloaded>() {
-        Problem::new(StatusCode::SERVICE_UNAVAILABLE, "too many requests at once; try again shortly")
-            .with_type("overloaded", "Overloaded")
-            .retry_after(1)
-            .into_response()
+        Problem::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "too many requests at once; try again shortly",
+        )
+        .with_type("overloaded", "Overloaded")
+        .retry_after(1)
+        .into_response()
     } else if e.is::<tower::timeout::error::Elapsed>() {
         Problem::new(StatusCode::SERVICE_UNAVAILABLE, "the request took too long")
             .with_type("timeout", "Request time-out")
@@ -96,7 +114,11 @@ fn overloaded(e: tower::BoxError) -> axum::response::Response {
 /// Serves until `shutdown` resolves, then stops taking requests and jobs, ends SSE streams,
 /// lets running solves finish for `shutdown_grace` (then leaves them queued in the store) and
 /// returns. Connections still open after a further five seconds are dropped.
-pub async fn run(listener: TcpListener, config: Config, shutdown: impl Future<Output = ()> + Send + 'static) -> std::io::Result<()> {
+pub async fn run(
+    listener: TcpListener,
+    config: Config,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
     let token = CancellationToken::new();
     let grace = config.shutdown_grace;
     let state = AppState::with_core(config, token.clone()).map_err(std::io::Error::other)?;

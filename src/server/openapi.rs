@@ -54,7 +54,17 @@ pub struct ResultDocument {
         routes::metrics,
         routes::index,
     ),
-    components(schemas(JobDocument, ResultDocument, JobStatus, JobState, ProgressInfo, Links, JobFailure, Problem, PathError))
+    components(schemas(
+        JobDocument,
+        ResultDocument,
+        JobStatus,
+        JobState,
+        ProgressInfo,
+        Links,
+        JobFailure,
+        Problem,
+        PathError
+    ))
 )]
 pub struct ApiDoc;
 

@@ -90,7 +90,13 @@ impl Problem {
 fn slug(title: &str) -> String {
     title
         .chars()
-        .map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '-'
+            }
+        })
         .collect()
 }
 
@@ -102,7 +108,8 @@ impl IntoResponse for Problem {
         res.headers_mut()
             .insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
         if let Some(s) = self.retry_after {
-            res.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(s));
+            res.headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(s));
         }
         res
     }
@@ -133,7 +140,8 @@ pub async fn problem_everywhere(res: axum::response::Response) -> axum::response
     if let Some(r) = retry {
         res.headers_mut().insert(header::RETRY_AFTER, r);
     } else if status == StatusCode::SERVICE_UNAVAILABLE || status == StatusCode::TOO_MANY_REQUESTS {
-        res.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(1));
+        res.headers_mut()
+            .insert(header::RETRY_AFTER, HeaderValue::from(1));
     }
     res
 }

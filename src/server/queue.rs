@@ -47,7 +47,10 @@ pub enum JobState {
 
 impl JobState {
     pub fn is_final(self) -> bool {
-        matches!(self, JobState::Succeeded | JobState::Failed | JobState::Cancelled)
+        matches!(
+            self,
+            JobState::Succeeded | JobState::Failed | JobState::Cancelled
+        )
     }
     pub fn as_str(self) -> &'static str {
         match self {
@@ -258,7 +261,12 @@ pub struct Queue {
 impl Queue {
     /// Opens the store under `config.data_dir`, restores its jobs (queued and running ones are
     /// queued again) and starts the dispatcher. Needs a tokio runtime.
-    pub fn start(config: Config, solve: SolveFn, metrics: Arc<Metrics>, shutdown: CancellationToken) -> Result<Queue, StoreError> {
+    pub fn start(
+        config: Config,
+        solve: SolveFn,
+        metrics: Arc<Metrics>,
+        shutdown: CancellationToken,
+    ) -> Result<Queue, StoreError> {
         let store = Store::open(&config.data_dir)?;
         let workers = config.worker_threads();
         let pool = rayon::ThreadPoolBuilder::new()
@@ -283,7 +291,12 @@ impl Queue {
             }),
         };
         let requeue = queue.restore()?;
-        tokio::spawn(dispatch(queue.clone(), receiver, Arc::new(Semaphore::new(workers)), shutdown.clone()));
+        tokio::spawn(dispatch(
+            queue.clone(),
+            receiver,
+            Arc::new(Semaphore::new(workers)),
+            shutdown.clone(),
+        ));
         let sender = queue.inner.sender.clone();
         tokio::spawn(async move {
             for entry in requeue {
@@ -303,7 +316,11 @@ impl Queue {
         let limits = inner.config.limits();
         let mut requeue = Vec::new();
         let mut entries = inner.entries.lock().expect("entries lock");
-        for Record { document, mut status } in records {
+        for Record {
+            document,
+            mut status,
+        } in records
+        {
             if self.expired(&status) {
                 inner.store.remove(&status.id)?;
                 continue;
@@ -330,7 +347,13 @@ impl Queue {
                         tracing::warn!(id = %status.id, errors = p.errors.len(), "a restored job no longer validates");
                     }
                 }
-                inner.store.put_job(&status.id, &Record { document: document.clone(), status: status.clone() })?;
+                inner.store.put_job(
+                    &status.id,
+                    &Record {
+                        document: document.clone(),
+                        status: status.clone(),
+                    },
+                )?;
             }
             let entry = Arc::new(Entry {
                 id: status.id.clone(),
@@ -353,7 +376,9 @@ impl Queue {
 
     fn expired(&self, status: &JobStatus) -> bool {
         let ttl = self.inner.config.result_ttl.as_millis() as u64;
-        status.finished_ms.is_some_and(|f| f.saturating_add(ttl) <= now_ms())
+        status
+            .finished_ms
+            .is_some_and(|f| f.saturating_add(ttl) <= now_ms())
     }
 
     /// Queues a validated document, or answers the job that already has this document.
@@ -366,7 +391,11 @@ impl Queue {
             return Ok(Submitted::Existing(e.clone()));
         }
         if inner.draining.load(Ordering::SeqCst) {
-            return Err(Problem::new(StatusCode::SERVICE_UNAVAILABLE, "the server is shutting down").retry_after(5));
+            return Err(Problem::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "the server is shutting down",
+            )
+            .retry_after(5));
         }
         if inner.sender.capacity() == 0 {
             return Err(queue_full(&inner.config));
@@ -384,7 +413,10 @@ impl Queue {
             error: None,
             links: Links::new(&id, &names),
         };
-        let record = Record { document: document.clone(), status: status.clone() };
+        let record = Record {
+            document: document.clone(),
+            status: status.clone(),
+        };
         inner.store.put_job(&id, &record).map_err(internal)?;
         let entry = Arc::new(Entry {
             id: id.clone(),
@@ -403,13 +435,29 @@ impl Queue {
     }
 
     pub fn get(&self, id: &str) -> Option<Arc<Entry>> {
-        self.inner.entries.lock().expect("entries lock").get(id).cloned()
+        self.inner
+            .entries
+            .lock()
+            .expect("entries lock")
+            .get(id)
+            .cloned()
     }
 
     /// Jobs, newest first.
     pub fn list(&self, limit: usize) -> Vec<JobStatus> {
-        let mut all: Vec<JobStatus> = self.inner.entries.lock().expect("entries lock").values().map(|e| e.status()).collect();
-        all.sort_by(|a, b| b.created_ms.cmp(&a.created_ms).then_with(|| a.id.cmp(&b.id)));
+        let mut all: Vec<JobStatus> = self
+            .inner
+            .entries
+            .lock()
+            .expect("entries lock")
+            .values()
+            .map(|e| e.status())
+            .collect();
+        all.sort_by(|a, b| {
+            b.created_ms
+                .cmp(&a.created_ms)
+                .then_with(|| a.id.cmp(&b.id))
+        });
         all.truncate(limit);
         all
     }
@@ -445,7 +493,13 @@ impl Queue {
     /// Refreshes the job gauges (called when `/metrics` is read).
     pub fn update_gauges(&self) {
         let mut counts: BTreeMap<&str, i64> = BTreeMap::new();
-        for s in [JobState::Queued, JobState::Running, JobState::Succeeded, JobState::Failed, JobState::Cancelled] {
+        for s in [
+            JobState::Queued,
+            JobState::Running,
+            JobState::Succeeded,
+            JobState::Failed,
+            JobState::Cancelled,
+        ] {
             counts.insert(s.as_str(), 0);
         }
         for e in self.inner.entries.lock().expect("entries lock").values() {
@@ -454,7 +508,11 @@ impl Queue {
         let m = &self.inner.metrics;
         m.queue_depth.set(counts["queued"]);
         for (state, n) in counts {
-            m.jobs.get_or_create(&StateLabel { state: state.to_string() }).set(n);
+            m.jobs
+                .get_or_create(&StateLabel {
+                    state: state.to_string(),
+                })
+                .set(n);
         }
     }
 
@@ -481,7 +539,9 @@ impl Queue {
         }
         tracing::warn!("stopping running solves; they stay queued for the next start");
         for e in inner.entries.lock().expect("entries lock").values() {
-            e.stop.compare_exchange(GO_ON, SHUTDOWN, Ordering::SeqCst, Ordering::SeqCst).ok();
+            e.stop
+                .compare_exchange(GO_ON, SHUTDOWN, Ordering::SeqCst, Ordering::SeqCst)
+                .ok();
         }
         wait_idle(Duration::from_secs(5)).await;
     }
@@ -489,7 +549,9 @@ impl Queue {
     /// Runs one job on the current (pool) thread.
     fn run(&self, entry: Arc<Entry>) {
         let inner = &self.inner;
-        let Some(job) = entry.job.as_ref() else { return };
+        let Some(job) = entry.job.as_ref() else {
+            return;
+        };
         if entry.stop.load(Ordering::SeqCst) != GO_ON || inner.draining.load(Ordering::SeqCst) {
             return;
         }
@@ -498,7 +560,10 @@ impl Queue {
         entry.status.send_modify(|s| {
             s.state = JobState::Running;
             s.started_ms = Some(now_ms());
-            s.progress = ProgressInfo { phase: "projection".into(), fraction: 0.0 };
+            s.progress = ProgressInfo {
+                phase: "projection".into(),
+                fraction: 0.0,
+            };
         });
         self.persist(&entry, &[]);
         let watch = Watch {
@@ -513,7 +578,10 @@ impl Queue {
             let json = serde_json::to_vec_pretty(&outcome.result).expect("a result serialises");
             Ok::<_, JobError>((json, images))
         }));
-        inner.metrics.solve_seconds.observe(start.elapsed().as_secs_f64());
+        inner
+            .metrics
+            .solve_seconds
+            .observe(start.elapsed().as_secs_f64());
         let stop = entry.stop.load(Ordering::SeqCst);
         // The final status is written to the store before it is published, so that whoever
         // sees `succeeded` can read the result.
@@ -531,7 +599,10 @@ impl Queue {
                 files.extend(images.files().into_iter().map(|(n, b)| (n, b.to_vec())));
                 status.state = JobState::Succeeded;
                 status.finished_ms = Some(now_ms());
-                status.progress = ProgressInfo { phase: "done".into(), fraction: 1.0 };
+                status.progress = ProgressInfo {
+                    phase: "done".into(),
+                    fraction: 1.0,
+                };
                 tracing::info!(id = %entry.id, seconds = start.elapsed().as_secs_f64(), "job succeeded");
             }
             Ok(Err(JobError::Cancelled)) if stop == SHUTDOWN => {
@@ -543,22 +614,43 @@ impl Queue {
                 "timeout",
                 "The solve ran too long",
                 StatusCode::GATEWAY_TIMEOUT,
-                format!("the solve ran past job_timeout ({:?}) and was stopped", inner.config.job_timeout),
+                format!(
+                    "the solve ran past job_timeout ({:?}) and was stopped",
+                    inner.config.job_timeout
+                ),
             ),
             Ok(Err(JobError::Cancelled)) => {}
-            Ok(Err(JobError::Diverged(m))) => failure("diverged", "The solve failed", StatusCode::INTERNAL_SERVER_ERROR, m),
-            Ok(Err(JobError::Unsupported(m))) => failure("unsupported", "Not supported", StatusCode::UNPROCESSABLE_ENTITY, m),
+            Ok(Err(JobError::Diverged(m))) => failure(
+                "diverged",
+                "The solve failed",
+                StatusCode::INTERNAL_SERVER_ERROR,
+                m,
+            ),
+            Ok(Err(JobError::Unsupported(m))) => failure(
+                "unsupported",
+                "Not supported",
+                StatusCode::UNPROCESSABLE_ENTITY,
+                m,
+            ),
             Err(panic) => {
                 let msg = panic
                     .downcast_ref::<String>()
                     .cloned()
                     .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
                     .unwrap_or_else(|| "unknown panic".into());
-                failure("panic", "The solve failed", StatusCode::INTERNAL_SERVER_ERROR, format!("the solver panicked: {msg}"))
+                failure(
+                    "panic",
+                    "The solve failed",
+                    StatusCode::INTERNAL_SERVER_ERROR,
+                    format!("the solver panicked: {msg}"),
+                )
             }
         }
         if entry.stop.load(Ordering::SeqCst) != CANCEL {
-            let files: Vec<(String, &[u8])> = files.iter().map(|(n, b)| (n.clone(), b.as_slice())).collect();
+            let files: Vec<(String, &[u8])> = files
+                .iter()
+                .map(|(n, b)| (n.clone(), b.as_slice()))
+                .collect();
             self.write(&entry, status.clone(), &files);
             entry.status.send_replace(status);
         }
@@ -571,7 +663,10 @@ impl Queue {
     }
 
     fn write(&self, entry: &Entry, status: JobStatus, files: &[(String, &[u8])]) {
-        let record = Record { document: entry.document.clone(), status };
+        let record = Record {
+            document: entry.document.clone(),
+            status,
+        };
         if let Err(e) = self.inner.store.put_finished(&entry.id, &record, files) {
             tracing::error!(id = %entry.id, error = %e, "could not write the job to the store");
         }
@@ -602,13 +697,19 @@ impl Queue {
 }
 
 fn queued() -> ProgressInfo {
-    ProgressInfo { phase: "queued".into(), fraction: 0.0 }
+    ProgressInfo {
+        phase: "queued".into(),
+        fraction: 0.0,
+    }
 }
 
 fn queue_full(config: &Config) -> Problem {
     Problem::new(
         StatusCode::TOO_MANY_REQUESTS,
-        format!("the queue is full ({} jobs waiting); try again later", config.queue_capacity),
+        format!(
+            "the queue is full ({} jobs waiting); try again later",
+            config.queue_capacity
+        ),
     )
     .with_type("queue-full", "Queue full")
     .retry_after(5)
@@ -622,7 +723,12 @@ fn internal(e: StoreError) -> Problem {
 /// Hands queued jobs to the pool, one per free worker. A worker slot is taken before a job
 /// is received, so that waiting jobs stay in the bounded channel and count against its
 /// capacity.
-async fn dispatch(queue: Queue, mut receiver: mpsc::Receiver<Arc<Entry>>, slots: Arc<Semaphore>, shutdown: CancellationToken) {
+async fn dispatch(
+    queue: Queue,
+    mut receiver: mpsc::Receiver<Arc<Entry>>,
+    slots: Arc<Semaphore>,
+    shutdown: CancellationToken,
+) {
     loop {
         let permit = tokio::select! {
             _ = shutdown.cancelled() => return,
@@ -647,7 +753,8 @@ async fn dispatch(queue: Queue, mut receiver: mpsc::Receiver<Arc<Entry>>, slots:
 
 /// Expires old results now and then.
 async fn janitor(queue: Queue, shutdown: CancellationToken) {
-    let every = (queue.inner.config.result_ttl / 4).clamp(Duration::from_millis(200), Duration::from_secs(60));
+    let every = (queue.inner.config.result_ttl / 4)
+        .clamp(Duration::from_millis(200), Duration::from_secs(60));
     let mut tick = tokio::time::interval(every);
     loop {
         tokio::select! {
@@ -670,12 +777,21 @@ struct Watch<'a> {
 
 impl Progress for Watch<'_> {
     fn report(&self, phase: Phase, fraction: f64) {
-        let fraction = if fraction.is_finite() { fraction.clamp(0.0, 1.0) } else { 0.0 };
+        let fraction = if fraction.is_finite() {
+            fraction.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         self.entry.status.send_if_modified(|s| {
             let p = &mut s.progress;
-            let changed = p.phase != phase.as_str() || (fraction - p.fraction).abs() >= 0.01 || (fraction == 1.0 && p.fraction != 1.0);
+            let changed = p.phase != phase.as_str()
+                || (fraction - p.fraction).abs() >= 0.01
+                || (fraction == 1.0 && p.fraction != 1.0);
             if changed {
-                *p = ProgressInfo { phase: phase.as_str().into(), fraction };
+                *p = ProgressInfo {
+                    phase: phase.as_str().into(),
+                    fraction,
+                };
             }
             changed
         });
@@ -699,9 +815,16 @@ mod tests {
 
     #[test]
     fn ids_ignore_key_order_and_whitespace() {
-        let a: Value = serde_json::from_str(r#"{"scene": {"kind": "fredholm", "domain": [0, 1]}, "solver": {}}"#).unwrap();
-        let b: Value = serde_json::from_str(r#"{"solver":{},"scene":{"domain":[0,1],"kind":"fredholm"}}"#).unwrap();
-        let c: Value = serde_json::from_str(r#"{"solver":{},"scene":{"domain":[0,2],"kind":"fredholm"}}"#).unwrap();
+        let a: Value = serde_json::from_str(
+            r#"{"scene": {"kind": "fredholm", "domain": [0, 1]}, "solver": {}}"#,
+        )
+        .unwrap();
+        let b: Value =
+            serde_json::from_str(r#"{"solver":{},"scene":{"domain":[0,1],"kind":"fredholm"}}"#)
+                .unwrap();
+        let c: Value =
+            serde_json::from_str(r#"{"solver":{},"scene":{"domain":[0,2],"kind":"fredholm"}}"#)
+                .unwrap();
         assert_eq!(job_id(&a), job_id(&b));
         assert_ne!(job_id(&a), job_id(&c));
         assert_eq!(job_id(&a).len(), 32);

@@ -19,7 +19,6 @@ use sha2::{Digest, Sha256};
 use std::convert::Infallible;
 use std::sync::Arc;
 
-
 pub fn router(state: AppState) -> Router {
     Router::new()
         .route("/api/v1/jobs", get(list_jobs).post(create_job))
@@ -36,17 +35,34 @@ pub fn router(state: AppState) -> Router {
         .route("/", get(index))
         .route("/static/{file}", get(static_file))
         .route("/scenes/{file}", get(scene_file))
-        .route_layer(axum::middleware::from_fn_with_state(state.metrics.clone(), super::metrics::count_requests))
+        .route_layer(axum::middleware::from_fn_with_state(
+            state.metrics.clone(),
+            super::metrics::count_requests,
+        ))
         .fallback(|| async { Problem::new(StatusCode::NOT_FOUND, "no such route") })
         .with_state(state)
 }
 
 /// Reads and validates a job document: 415 unless the content type is JSON, 413 past
 /// `max_body_bytes`, 400 unless UTF-8 JSON, 422 with every path at fault.
-pub async fn read_document(state: &AppState, headers: &HeaderMap, body: Body) -> Result<(Value, Job), Problem> {
-    let content_type = headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or("");
-    let mime = content_type.split(';').next().unwrap_or("").trim().to_ascii_lowercase();
-    if !(mime == "application/json" || (mime.starts_with("application/") && mime.ends_with("+json"))) {
+pub async fn read_document(
+    state: &AppState,
+    headers: &HeaderMap,
+    body: Body,
+) -> Result<(Value, Job), Problem> {
+    let content_type = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let mime = content_type
+        .split(';')
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase();
+    if !(mime == "application/json"
+        || (mime.starts_with("application/") && mime.ends_with("+json")))
+    {
         return Err(Problem::new(
             StatusCode::UNSUPPORTED_MEDIA_TYPE,
             format!("send the job document as application/json (got {content_type:?})"),
@@ -56,26 +72,46 @@ pub async fn read_document(state: &AppState, headers: &HeaderMap, body: Body) ->
     let bytes = axum::body::to_bytes(body, limit).await.map_err(|e| {
         let text = format!("{e} {:?}", std::error::Error::source(&e));
         if text.to_ascii_lowercase().contains("length limit") {
-            Problem::new(StatusCode::PAYLOAD_TOO_LARGE, format!("the body is larger than max_body_bytes ({limit} bytes)"))
+            Problem::new(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!("the body is larger than max_body_bytes ({limit} bytes)"),
+            )
         } else {
-            Problem::new(StatusCode::BAD_REQUEST, format!("could not read the body: {e}"))
+            Problem::new(
+                StatusCode::BAD_REQUEST,
+                format!("could not read the body: {e}"),
+            )
         }
     })?;
-    let text = std::str::from_utf8(&bytes)
-        .map_err(|e| Problem::new(StatusCode::BAD_REQUEST, format!("the body is not UTF-8: {e}")))?;
-    let value: Value = serde_json::from_str(text).map_err(|e| {
-        Problem::new(StatusCode::BAD_REQUEST, format!("the body is not JSON: {e}")).with_type("not-json", "Not JSON")
+    let text = std::str::from_utf8(&bytes).map_err(|e| {
+        Problem::new(
+            StatusCode::BAD_REQUEST,
+            format!("the body is not UTF-8: {e}"),
+        )
     })?;
-    let job = crate::scene::parse_value(&value, &state.config.limits()).map_err(|e| Problem::invalid(&e))?;
+    let value: Value = serde_json::from_str(text).map_err(|e| {
+        Problem::new(
+            StatusCode::BAD_REQUEST,
+            format!("the body is not JSON: {e}"),
+        )
+        .with_type("not-json", "Not JSON")
+    })?;
+    let job = crate::scene::parse_value(&value, &state.config.limits())
+        .map_err(|e| Problem::invalid(&e))?;
     Ok((value, job))
 }
 
 async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> T {
-    tokio::task::spawn_blocking(f).await.expect("a blocking task panicked")
+    tokio::task::spawn_blocking(f)
+        .await
+        .expect("a blocking task panicked")
 }
 
 fn entry(state: &AppState, id: &str) -> Result<Arc<Entry>, Problem> {
-    state.queue.get(id).ok_or_else(|| Problem::not_found(&format!("job {id}")))
+    state
+        .queue
+        .get(id)
+        .ok_or_else(|| Problem::not_found(&format!("job {id}")))
 }
 
 async fn submit(state: &AppState, document: Value, job: Job) -> Result<Submitted, Problem> {
@@ -95,7 +131,11 @@ async fn submit(state: &AppState, document: Value, job: Job) -> Result<Submitted
         (status = 422, description = "invalid document, every path at fault", body = Problem, content_type = "application/problem+json"),
         (status = 429, description = "queue full (Retry-After)", body = Problem, content_type = "application/problem+json"),
     ))]
-pub async fn create_job(State(state): State<AppState>, headers: HeaderMap, body: Body) -> Result<Response, Problem> {
+pub async fn create_job(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, Problem> {
     let (document, job) = read_document(&state, &headers, body).await?;
     let (status, entry) = match submit(&state, document, job).await? {
         Submitted::New(e) => (StatusCode::ACCEPTED, e),
@@ -117,27 +157,39 @@ pub struct ListQuery {
 /// Recent jobs, newest first.
 #[utoipa::path(get, path = "/api/v1/jobs", tag = "jobs", params(ListQuery),
     responses((status = 200, body = Vec<JobStatus>)))]
-pub async fn list_jobs(State(state): State<AppState>, Query(q): Query<ListQuery>) -> Json<Vec<JobStatus>> {
+pub async fn list_jobs(
+    State(state): State<AppState>,
+    Query(q): Query<ListQuery>,
+) -> Json<Vec<JobStatus>> {
     Json(state.queue.list(q.limit.unwrap_or(50).min(1000)))
 }
 
 /// A job's status.
 #[utoipa::path(get, path = "/api/v1/jobs/{id}", tag = "jobs", params(("id" = String, Path)),
     responses((status = 200, body = JobStatus), (status = 404, body = Problem, content_type = "application/problem+json")))]
-pub async fn job_status(State(state): State<AppState>, Path(id): Path<String>) -> Result<Json<JobStatus>, Problem> {
+pub async fn job_status(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<JobStatus>, Problem> {
     Ok(Json(entry(&state, &id)?.status()))
 }
 
 /// Cancel a job (a running solve stops within a second) and forget it.
 #[utoipa::path(delete, path = "/api/v1/jobs/{id}", tag = "jobs", params(("id" = String, Path)),
     responses((status = 204), (status = 404, body = Problem, content_type = "application/problem+json")))]
-pub async fn delete_job(State(state): State<AppState>, Path(id): Path<String>) -> Result<StatusCode, Problem> {
+pub async fn delete_job(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<StatusCode, Problem> {
     let queue = state.queue.clone();
     let key = id.clone();
     match blocking(move || queue.delete(&key)).await {
         Ok(true) => Ok(StatusCode::NO_CONTENT),
         Ok(false) => Err(Problem::not_found(&format!("job {id}"))),
-        Err(e) => Err(Problem::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string())),
+        Err(e) => Err(Problem::new(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            e.to_string(),
+        )),
     }
 }
 
@@ -146,19 +198,28 @@ pub async fn delete_job(State(state): State<AppState>, Path(id): Path<String>) -
 #[utoipa::path(get, path = "/api/v1/jobs/{id}/events", tag = "jobs", params(("id" = String, Path)),
     responses((status = 200, description = "text/event-stream of JobStatus events", body = String, content_type = "text/event-stream"),
         (status = 404, body = Problem, content_type = "application/problem+json")))]
-pub async fn job_events(State(state): State<AppState>, Path(id): Path<String>) -> Result<Response, Problem> {
+pub async fn job_events(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Response, Problem> {
     let rx = entry(&state, &id)?.subscribe();
-    let stream = futures_util::stream::unfold((rx, false, true), |(mut rx, ended, first)| async move {
-        if ended || (!first && rx.changed().await.is_err()) {
-            return None;
-        }
-        let status = rx.borrow_and_update().clone();
-        let ended = status.state.is_final();
-        let event = Event::default().event("status").json_data(&status).expect("a status serialises");
-        Some((Ok::<_, Infallible>(event), (rx, ended, false)))
-    })
-    .take_until(state.shutdown.clone().cancelled_owned());
-    Ok(Sse::new(stream).keep_alive(KeepAlive::default()).into_response())
+    let stream =
+        futures_util::stream::unfold((rx, false, true), |(mut rx, ended, first)| async move {
+            if ended || (!first && rx.changed().await.is_err()) {
+                return None;
+            }
+            let status = rx.borrow_and_update().clone();
+            let ended = status.state.is_final();
+            let event = Event::default()
+                .event("status")
+                .json_data(&status)
+                .expect("a status serialises");
+            Some((Ok::<_, Infallible>(event), (rx, ended, false)))
+        })
+        .take_until(state.shutdown.clone().cancelled_owned());
+    Ok(Sse::new(stream)
+        .keep_alive(KeepAlive::default())
+        .into_response())
 }
 
 /// 404 for an unknown job, 409 (with the job's state) until it has succeeded.
@@ -168,11 +229,20 @@ fn finished(state: &AppState, id: &str) -> Result<JobStatus, Problem> {
         JobState::Succeeded => Ok(status),
         JobState::Failed => Err(Problem::new(
             StatusCode::CONFLICT,
-            format!("job {id} failed: {}", status.error.as_ref().map_or("", |e| e.detail.as_str())),
+            format!(
+                "job {id} failed: {}",
+                status.error.as_ref().map_or("", |e| e.detail.as_str())
+            ),
         )
         .with_type("job-failed", "Job failed")),
-        s => Err(Problem::new(StatusCode::CONFLICT, format!("job {id} is {}; try again when it has succeeded", s.as_str()))
-            .with_type("not-finished", "Not finished")),
+        s => Err(Problem::new(
+            StatusCode::CONFLICT,
+            format!(
+                "job {id} is {}; try again when it has succeeded",
+                s.as_str()
+            ),
+        )
+        .with_type("not-finished", "Not finished")),
     }
 }
 
@@ -182,7 +252,10 @@ async fn stored(state: &AppState, id: &str, name: &str) -> Result<Vec<u8>, Probl
     match blocking(move || queue.file(&key, &file)).await {
         Ok(Some(bytes)) => Ok(bytes),
         Ok(None) => Err(Problem::not_found(&format!("{name} for job {id}"))),
-        Err(e) => Err(Problem::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string())),
+        Err(e) => Err(Problem::new(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            e.to_string(),
+        )),
     }
 }
 
@@ -191,7 +264,10 @@ async fn stored(state: &AppState, id: &str, name: &str) -> Result<Vec<u8>, Probl
     responses((status = 200, body = super::openapi::ResultDocument),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn job_result(State(state): State<AppState>, Path(id): Path<String>) -> Result<Response, Problem> {
+pub async fn job_result(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Response, Problem> {
     finished(&state, &id)?;
     let bytes = stored(&state, &id, "result.json").await?;
     Ok(([(header::CONTENT_TYPE, "application/json")], bytes).into_response())
@@ -204,9 +280,18 @@ pub async fn job_result(State(state): State<AppState>, Path(id): Path<String>) -
         (status = 304, description = "If-None-Match matched the ETag"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn job_artifact(State(state): State<AppState>, Path((id, artifact)): Path<(String, String)>, headers: HeaderMap) -> Result<Response, Problem> {
-    if !matches!(artifact.as_str(), "image.png" | "sparsity.png" | "coefficients.png") {
-        return Err(Problem::not_found(&format!("artifact {artifact} (image.png, sparsity.png, coefficients.png)")));
+pub async fn job_artifact(
+    State(state): State<AppState>,
+    Path((id, artifact)): Path<(String, String)>,
+    headers: HeaderMap,
+) -> Result<Response, Problem> {
+    if !matches!(
+        artifact.as_str(),
+        "image.png" | "sparsity.png" | "coefficients.png"
+    ) {
+        return Err(Problem::not_found(&format!(
+            "artifact {artifact} (image.png, sparsity.png, coefficients.png)"
+        )));
     }
     finished(&state, &id)?;
     let bytes = stored(&state, &id, &artifact).await?;
@@ -219,9 +304,15 @@ pub async fn job_artifact(State(state): State<AppState>, Path((id, artifact)): P
     responses((status = 200, content_type = "image/png", body = Vec<u8>),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn job_surface(State(state): State<AppState>, Path((id, file)): Path<(String, String)>, headers: HeaderMap) -> Result<Response, Problem> {
+pub async fn job_surface(
+    State(state): State<AppState>,
+    Path((id, file)): Path<(String, String)>,
+    headers: HeaderMap,
+) -> Result<Response, Problem> {
     let Some(name) = file.strip_suffix(".png") else {
-        return Err(Problem::not_found(&format!("surface image {file} (ask for <name>.png)")));
+        return Err(Problem::not_found(&format!(
+            "surface image {file} (ask for <name>.png)"
+        )));
     };
     let status = entry(&state, &id)?.status();
     if !status.links.surfaces.contains_key(name) {
@@ -236,14 +327,24 @@ pub async fn job_surface(State(state): State<AppState>, Path((id, file)): Path<(
 /// the same bytes.
 fn png(bytes: Vec<u8>, headers: &HeaderMap) -> Response {
     let digest = Sha256::digest(&bytes);
-    let etag = format!("\"{}\"", digest[..16].iter().map(|b| format!("{b:02x}")).collect::<String>());
+    let etag = format!(
+        "\"{}\"",
+        digest[..16]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect::<String>()
+    );
     let cache = (header::CACHE_CONTROL, "public, max-age=31536000, immutable");
     let matches = headers
         .get(header::IF_NONE_MATCH)
         .and_then(|v| v.to_str().ok())
         .is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*"));
     if matches {
-        return (StatusCode::NOT_MODIFIED, [(header::ETAG, etag), (cache.0, cache.1.to_string())]).into_response();
+        return (
+            StatusCode::NOT_MODIFIED,
+            [(header::ETAG, etag), (cache.0, cache.1.to_string())],
+        )
+            .into_response();
     }
     (
         [
@@ -269,7 +370,11 @@ fn png(bytes: Vec<u8>, headers: &HeaderMap) -> Response {
         (status = 500, description = "the solve failed", body = Problem, content_type = "application/problem+json"),
         (status = 503, description = "would wait longer than sync_timeout, or the queue is full (Retry-After)", body = Problem, content_type = "application/problem+json"),
     ))]
-pub async fn render_now(State(state): State<AppState>, headers: HeaderMap, request: Request) -> Result<Response, Problem> {
+pub async fn render_now(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    request: Request,
+) -> Result<Response, Problem> {
     let (document, job) = read_document(&state, &headers, request.into_body()).await?;
     let entry = match submit(&state, document, job).await {
         Ok(Submitted::New(e) | Submitted::Existing(e)) => e,
@@ -285,14 +390,22 @@ pub async fn render_now(State(state): State<AppState>, headers: HeaderMap, reque
     let Some(status) = wait_final(&entry, limit).await else {
         return Err(Problem::new(
             StatusCode::SERVICE_UNAVAILABLE,
-            format!("the solve takes longer than sync_timeout ({limit:?}); it goes on as job {}", entry.id),
+            format!(
+                "the solve takes longer than sync_timeout ({limit:?}); it goes on as job {}",
+                entry.id
+            ),
         )
         .with_type("sync-timeout", "Too slow to answer at once")
         .retry_after(limit.as_secs().max(1)));
     };
     match status.state {
         JobState::Succeeded => {}
-        JobState::Failed => return Err(status.error.map(|e| e.to_problem()).unwrap_or_else(|| Problem::new(StatusCode::INTERNAL_SERVER_ERROR, "failed"))),
+        JobState::Failed => {
+            return Err(status
+                .error
+                .map(|e| e.to_problem())
+                .unwrap_or_else(|| Problem::new(StatusCode::INTERNAL_SERVER_ERROR, "failed")))
+        }
         _ => return Err(Problem::new(StatusCode::CONFLICT, "the job was cancelled")),
     }
     let wants_json = headers
@@ -302,12 +415,21 @@ pub async fn render_now(State(state): State<AppState>, headers: HeaderMap, reque
     let location = (header::CONTENT_LOCATION, status.links.this.clone());
     if wants_json {
         let bytes = stored(&state, &entry.id, "result.json").await?;
-        Ok(([(header::CONTENT_TYPE, "application/json".to_string()), location], bytes).into_response())
+        Ok((
+            [
+                (header::CONTENT_TYPE, "application/json".to_string()),
+                location,
+            ],
+            bytes,
+        )
+            .into_response())
     } else {
         let bytes = stored(&state, &entry.id, "image.png").await?;
         let mut res = png(bytes, &HeaderMap::new());
-        res.headers_mut()
-            .insert(location.0, HeaderValue::from_str(&location.1).expect("ids are hex"));
+        res.headers_mut().insert(
+            location.0,
+            HeaderValue::from_str(&location.1).expect("ids are hex"),
+        );
         Ok(res)
     }
 }
@@ -343,7 +465,11 @@ pub async fn readyz(State(state): State<AppState>) -> Result<&'static str, Probl
     if state.queue.ready() && !state.shutdown.is_cancelled() {
         Ok("ready\n")
     } else {
-        Err(Problem::new(StatusCode::SERVICE_UNAVAILABLE, "not taking jobs (queue full or shutting down)").retry_after(5))
+        Err(Problem::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "not taking jobs (queue full or shutting down)",
+        )
+        .retry_after(5))
     }
 }
 
@@ -352,7 +478,10 @@ pub async fn readyz(State(state): State<AppState>) -> Result<&'static str, Probl
 pub async fn metrics(State(state): State<AppState>) -> Response {
     state.queue.update_gauges();
     (
-        [(header::CONTENT_TYPE, "application/openmetrics-text; version=1.0.0; charset=utf-8")],
+        [(
+            header::CONTENT_TYPE,
+            "application/openmetrics-text; version=1.0.0; charset=utf-8",
+        )],
         state.metrics.encode(),
     )
         .into_response()
@@ -366,18 +495,40 @@ pub async fn index() -> Html<&'static str> {
 
 async fn static_file(Path(file): Path<String>) -> Result<Response, Problem> {
     let (body, mime) = match file.as_str() {
-        "app.js" => (include_str!("../../static/app.js"), "text/javascript; charset=utf-8"),
-        "style.css" => (include_str!("../../static/style.css"), "text/css; charset=utf-8"),
+        "app.js" => (
+            include_str!("../../static/app.js"),
+            "text/javascript; charset=utf-8",
+        ),
+        "style.css" => (
+            include_str!("../../static/style.css"),
+            "text/css; charset=utf-8",
+        ),
         _ => return Err(Problem::not_found(&format!("static file {file}"))),
     };
-    Ok(([(header::CONTENT_TYPE, mime), (header::CACHE_CONTROL, "no-cache")], body).into_response())
+    Ok((
+        [
+            (header::CONTENT_TYPE, mime),
+            (header::CACHE_CONTROL, "no-cache"),
+        ],
+        body,
+    )
+        .into_response())
 }
 
 /// The example scenes shipped in `scenes/`, embedded.
 pub const SCENES: [(&str, &str); 5] = [
-    ("flatland-parallel", include_str!("../../scenes/flatland-parallel.json")),
-    ("flatland-perpendicular", include_str!("../../scenes/flatland-perpendicular.json")),
-    ("fredholm-degenerate", include_str!("../../scenes/fredholm-degenerate.json")),
+    (
+        "flatland-parallel",
+        include_str!("../../scenes/flatland-parallel.json"),
+    ),
+    (
+        "flatland-perpendicular",
+        include_str!("../../scenes/flatland-perpendicular.json"),
+    ),
+    (
+        "fredholm-degenerate",
+        include_str!("../../scenes/fredholm-degenerate.json"),
+    ),
     ("plates-3d", include_str!("../../scenes/plates-3d.json")),
     ("cornell-box", include_str!("../../scenes/cornell-box.json")),
 ];
@@ -394,4 +545,3 @@ async fn scene_file(Path(file): Path<String>) -> Result<Response, Problem> {
         .ok_or_else(|| Problem::not_found(&format!("example scene {name}")))?;
     Ok(([(header::CONTENT_TYPE, "application/json")], *text).into_response())
 }
-

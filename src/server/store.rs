@@ -49,7 +49,12 @@ impl Store {
     }
 
     /// Writes a job's record and its files in one transaction.
-    pub fn put_finished<T: Serialize>(&self, id: &str, record: &T, files: &[(String, &[u8])]) -> Result<(), StoreError> {
+    pub fn put_finished<T: Serialize>(
+        &self,
+        id: &str,
+        record: &T,
+        files: &[(String, &[u8])],
+    ) -> Result<(), StoreError> {
         let bytes = serde_json::to_vec(record)?;
         let txn = self.db.begin_write().map_err(dberr)?;
         {
@@ -57,7 +62,9 @@ impl Store {
             jobs.insert(id, bytes.as_slice()).map_err(dberr)?;
             let mut table = txn.open_table(FILES).map_err(dberr)?;
             for (name, data) in files {
-                table.insert(format!("{id}/{name}").as_str(), *data).map_err(dberr)?;
+                table
+                    .insert(format!("{id}/{name}").as_str(), *data)
+                    .map_err(dberr)?;
             }
         }
         txn.commit().map_err(dberr)?;
@@ -117,19 +124,36 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let store = Store::open(dir.path()).unwrap();
         store
-            .put_finished("a", &serde_json::json!({"n": 1}), &[("x.png".into(), b"png".as_slice())])
+            .put_finished(
+                "a",
+                &serde_json::json!({"n": 1}),
+                &[("x.png".into(), b"png".as_slice())],
+            )
             .unwrap();
         store.put_job("ab", &serde_json::json!({"n": 2})).unwrap();
         store
-            .put_finished("ab", &serde_json::json!({"n": 2}), &[("y".into(), b"y".as_slice())])
+            .put_finished(
+                "ab",
+                &serde_json::json!({"n": 2}),
+                &[("y".into(), b"y".as_slice())],
+            )
             .unwrap();
         assert_eq!(store.jobs::<serde_json::Value>().unwrap().len(), 2);
-        assert_eq!(store.file("a", "x.png").unwrap().as_deref(), Some(b"png".as_slice()));
+        assert_eq!(
+            store.file("a", "x.png").unwrap().as_deref(),
+            Some(b"png".as_slice())
+        );
         store.remove("a").unwrap();
         assert_eq!(store.file("a", "x.png").unwrap(), None);
-        assert_eq!(store.file("ab", "y").unwrap().as_deref(), Some(b"y".as_slice()));
+        assert_eq!(
+            store.file("ab", "y").unwrap().as_deref(),
+            Some(b"y".as_slice())
+        );
         drop(store);
         let store = Store::open(dir.path()).unwrap();
-        assert_eq!(store.jobs::<serde_json::Value>().unwrap(), vec![serde_json::json!({"n": 2})]);
+        assert_eq!(
+            store.jobs::<serde_json::Value>().unwrap(),
+            vec![serde_json::json!({"n": 2})]
+        );
     }
 }

@@ -53,7 +53,12 @@ pub fn test_solver() -> SolveFn {
 }
 
 pub fn state(config: Config) -> AppState {
-    AppState::start(config, test_solver(), tokio_util::sync::CancellationToken::new()).unwrap()
+    AppState::start(
+        config,
+        test_solver(),
+        tokio_util::sync::CancellationToken::new(),
+    )
+    .unwrap()
 }
 
 /// Waits (on the job's watch channel, not by polling) until the job is in `pred`'s state.
