@@ -165,7 +165,7 @@ async fn a_real_server_answers_over_tcp_and_shuts_down_with_an_open_event_stream
     assert_eq!(
         again
             .queue
-            .get(&status["id"].as_str().unwrap().to_string())
+            .get(status["id"].as_str().unwrap())
             .unwrap()
             .status()
             .state,

@@ -16,7 +16,7 @@ const FILES: TableDefinition<&str, &[u8]> = TableDefinition::new("files");
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
     #[error("store: {0}")]
-    Db(#[from] redb::Error),
+    Db(Box<redb::Error>),
     #[error("store: a record does not parse: {0}")]
     Json(#[from] serde_json::Error),
     #[error("store: {0}")]
@@ -24,7 +24,7 @@ pub enum StoreError {
 }
 
 fn dberr<E: Into<redb::Error>>(e: E) -> StoreError {
-    StoreError::Db(e.into())
+    StoreError::Db(Box::new(e.into()))
 }
 
 pub struct Store {
