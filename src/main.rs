@@ -1,1 +1,132 @@
-fn main() {}
+//! The `wavrad` command: `serve` (the HTTP service), `render DOC --out DIR` (one job without a
+//! server) and `validate DOC`.
+
+use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use wavrad::server::Config;
+
+#[derive(Parser)]
+#[command(name = "wavrad", version, about = "Wavelet radiosity render service")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Serve the HTTP API and the web page.
+    Serve(Config),
+    /// Solve one job document and write DIR/result.json and the images.
+    Render {
+        /// The job document (JSON).
+        doc: PathBuf,
+        /// Where to write result.json, image.png, sparsity.png, coefficients.png, surfaces/.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Check a job document: prints every error as `PATH: message`; exit 2 when invalid.
+    Validate { doc: PathBuf },
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("WAVRAD_LOG")
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,tower_http=warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    match Cli::parse().command {
+        Command::Serve(config) => serve(config),
+        Command::Render { doc, out } => render(&doc, &out),
+        Command::Validate { doc } => validate(&doc),
+    }
+}
+
+fn serve(config: Config) -> ExitCode {
+    let runtime = tokio::runtime::Runtime::new().expect("a tokio runtime");
+    let result = runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind(config.addr).await?;
+        let addr = listener.local_addr()?;
+        println!("wavrad listening; web page at http://{addr}/");
+        wavrad::server::run(listener, config, shutdown_signal()).await
+    });
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("wavrad: {e}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        _ = ctrl_c => {}
+        _ = term => {}
+    }
+}
+
+fn read(doc: &Path) -> Result<String, ExitCode> {
+    std::fs::read_to_string(doc).map_err(|e| {
+        eprintln!("wavrad: cannot read {}: {e}", doc.display());
+        ExitCode::from(1)
+    })
+}
+
+fn parse(text: &str) -> Result<wavrad::scene::Job, ExitCode> {
+    wavrad::scene::parse_document(text, &wavrad::scene::Limits::default()).map_err(|errors| {
+        for e in &errors.0 {
+            println!("{e}");
+        }
+        ExitCode::from(2)
+    })
+}
+
+fn validate(doc: &Path) -> ExitCode {
+    let run = || -> Result<(), ExitCode> {
+        parse(&read(doc)?)?;
+        println!("{}: valid", doc.display());
+        Ok(())
+    };
+    run().err().unwrap_or(ExitCode::SUCCESS)
+}
+
+fn render(doc: &Path, out: &Path) -> ExitCode {
+    let run = || -> Result<(), ExitCode> {
+        let job = parse(&read(doc)?)?;
+        let outcome = wavrad::job::run(&job, &wavrad::progress::Silent).map_err(|e| {
+            eprintln!("wavrad: the solve failed: {e}");
+            ExitCode::from(3)
+        })?;
+        let images = wavrad::render::render_all(&job, &outcome);
+        let json = serde_json::to_vec_pretty(&outcome.result).expect("a result serialises");
+        let io = |e: std::io::Error| {
+            eprintln!("wavrad: cannot write to {}: {e}", out.display());
+            ExitCode::from(1)
+        };
+        std::fs::create_dir_all(out.join("surfaces")).map_err(io)?;
+        std::fs::write(out.join("result.json"), json).map_err(io)?;
+        for (name, bytes) in images.files() {
+            std::fs::write(out.join(&name), bytes).map_err(io)?;
+        }
+        println!("wrote {}", out.display());
+        Ok(())
+    };
+    run().err().unwrap_or(ExitCode::SUCCESS)
+}

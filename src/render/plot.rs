@@ -1,0 +1,431 @@
+//! Charts drawn with plotters into an in-memory RGB buffer, with the DejaVu Sans font embedded in
+//! the binary (no fontconfig, no files): B along each surface, the kernel matrix magnitudes and
+//! the sorted coefficient magnitudes.
+
+use crate::compress::MagnitudePicture;
+use crate::field::Field;
+use crate::result::Coefficients;
+use crate::scene::{Job, SceneKind};
+use image::RgbImage;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::FontStyle;
+use std::error::Error;
+use std::sync::Once;
+
+/// DejaVu Sans (licence in `assets/fonts/LICENSE-DejaVu.txt`).
+static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+const SANS: &str = "sans-serif";
+
+type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+type Drawn<T> = Result<T, Box<dyn Error>>;
+
+const CHANNELS: [(&str, RGBColor); 3] = [
+    ("R", RGBColor(214, 39, 40)),
+    ("G", RGBColor(44, 160, 44)),
+    ("B", RGBColor(31, 119, 180)),
+];
+
+fn register_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        plotters::style::register_font(SANS, FontStyle::Normal, FONT)
+            .map_err(|_| ())
+            .expect("the embedded font parses");
+    });
+}
+
+/// Draws on a white `w × h` canvas and returns the pixels and what `draw` returned.
+fn canvas<T>(w: u32, h: u32, draw: impl FnOnce(&Area<'_>) -> Drawn<T>) -> (RgbImage, T) {
+    let mut buf = vec![255u8; w as usize * h as usize * 3];
+    let value = draw_on(&mut buf, w, h, draw);
+    (
+        RgbImage::from_raw(w, h, buf).expect("buffer of w × h × 3"),
+        value,
+    )
+}
+
+fn draw_on<T>(buf: &mut [u8], w: u32, h: u32, draw: impl FnOnce(&Area<'_>) -> Drawn<T>) -> T {
+    register_font();
+    let root = BitMapBackend::with_buffer(buf, (w, h)).into_drawing_area();
+    let value = draw(&root).unwrap_or_else(|e| panic!("drawing a {w}×{h} chart failed: {e}"));
+    root.present().expect("presenting into memory cannot fail");
+    value
+}
+
+/// One line of a chart: label, colour, points.
+struct Series {
+    label: String,
+    color: RGBColor,
+    points: Vec<(f64, f64)>,
+}
+
+/// B along a field, sampled inside every leaf so that jumps between cells stay visible;
+/// `x` maps s ∈ [0,1] to the plotted abscissa.
+fn samples(f: &Field, channel: Option<usize>, x: impl Fn(f64) -> f64) -> Vec<(f64, f64)> {
+    let per_leaf = (256 / f.leaves.len().max(1)).clamp(2, 32);
+    let mut leaves: Vec<_> = f.leaves.iter().collect();
+    leaves.sort_by(|a, b| a.s[0].total_cmp(&b.s[0]));
+    let mut out = Vec::new();
+    for leaf in leaves {
+        for i in 0..=per_leaf {
+            let s = leaf.s[0] + (leaf.s[1] - leaf.s[0]) * i as f64 / per_leaf as f64;
+            let v = f.eval_leaf(leaf, s, 0.0);
+            let y = match channel {
+                Some(c) => v[c],
+                None => (v[0] + v[1] + v[2]) / 3.0,
+            };
+            out.push((x(s), y));
+        }
+    }
+    out
+}
+
+fn channels_differ(fields: &[Field]) -> bool {
+    fields.iter().any(|f| {
+        f.leaves.iter().flat_map(|l| &l.coeffs).any(|c| {
+            (c[0] - c[1]).abs() > 1e-12 * c[0].abs().max(1.0)
+                || (c[0] - c[2]).abs() > 1e-12 * c[0].abs().max(1.0)
+        })
+    })
+}
+
+/// `image.png` of flatland and fredholm: B against the parameter along each surface, one panel
+/// per surface (up to six; more share one chart), one line per channel when channels differ.
+pub fn radiosity(job: &Job, names: &[String], fields: &[Field], w: u32, h: u32) -> RgbImage {
+    let (domain, xdesc, ydesc) = match &job.scene.kind {
+        SceneKind::Fredholm(f) => (f.domain, "x", "B(x)"),
+        _ => (
+            [0.0, 1.0],
+            "s (position along the surface, 0 to 1)",
+            "B (W/m)",
+        ),
+    };
+    let x = |s: f64| domain[0] + s * (domain[1] - domain[0]);
+    let differ = channels_differ(fields);
+    let title = job
+        .scene
+        .name
+        .clone()
+        .unwrap_or_else(|| "Radiosity".to_string());
+    canvas(w, h, |root| {
+        root.fill(&WHITE)?;
+        let root = root.titled(&title, (SANS, 18))?;
+        if fields.len() <= 6 {
+            let panels = root.split_evenly((fields.len(), 1));
+            for ((area, f), name) in panels.iter().zip(fields).zip(names) {
+                let series = if differ {
+                    CHANNELS
+                        .iter()
+                        .enumerate()
+                        .map(|(c, (label, color))| Series {
+                            label: format!("{name} {label}"),
+                            color: *color,
+                            points: samples(f, Some(c), x),
+                        })
+                        .collect()
+                } else {
+                    vec![Series {
+                        label: name.clone(),
+                        color: CHANNELS[2].1,
+                        points: samples(f, Some(0), x),
+                    }]
+                };
+                line_chart(area, name, domain, xdesc, ydesc, series)?;
+            }
+        } else {
+            let series = fields
+                .iter()
+                .zip(names)
+                .enumerate()
+                .map(|(i, (f, name))| {
+                    let c = Palette99::pick(i).to_rgba();
+                    Series {
+                        label: if differ {
+                            format!("{name} (mean of R,G,B)")
+                        } else {
+                            name.clone()
+                        },
+                        color: RGBColor(c.0, c.1, c.2),
+                        points: samples(f, if differ { None } else { Some(0) }, x),
+                    }
+                })
+                .collect();
+            line_chart(&root, "all surfaces", domain, xdesc, ydesc, series)?;
+        }
+        Ok(())
+    })
+    .0
+}
+
+fn line_chart(
+    area: &Area<'_>,
+    caption: &str,
+    domain: [f64; 2],
+    xdesc: &str,
+    ydesc: &str,
+    series: Vec<Series>,
+) -> Drawn<()> {
+    let (lo, hi) = series
+        .iter()
+        .flat_map(|s| &s.points)
+        .fold((0.0f64, f64::MIN_POSITIVE), |(lo, hi), &(_, y)| {
+            (lo.min(y), hi.max(y))
+        });
+    let pad = (hi - lo) * 0.05;
+    let small = area.dim_in_pixel().1 < 200;
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, (SANS, if small { 12 } else { 15 }))
+        .margin(8)
+        .x_label_area_size(if small { 22 } else { 40 })
+        .y_label_area_size(62)
+        .build_cartesian_2d(
+            domain[0]..domain[1],
+            (lo - if lo < 0.0 { pad } else { 0.0 })..(hi + pad),
+        )?;
+    let y_format = |v: &f64| format!("{v:.3}");
+    let mut mesh = chart.configure_mesh();
+    mesh.label_style((SANS, 11))
+        .y_desc(ydesc)
+        .y_label_formatter(&y_format);
+    if !small {
+        mesh.x_desc(xdesc);
+    }
+    mesh.draw()?;
+    for s in series {
+        let color = s.color;
+        chart
+            .draw_series(LineSeries::new(s.points, color.stroke_width(2)))?
+            .label(s.label)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .label_font((SANS, 11))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
+}
+
+/// A perceptually ordered colour map (viridis, interpolated between eight anchors), t ∈ [0,1].
+pub fn viridis(t: f64) -> RGBColor {
+    const A: [(u8, u8, u8); 8] = [
+        (68, 1, 84),
+        (70, 50, 127),
+        (54, 92, 141),
+        (39, 127, 142),
+        (31, 161, 135),
+        (74, 194, 109),
+        (159, 218, 58),
+        (253, 231, 37),
+    ];
+    let t = t.clamp(0.0, 1.0) * (A.len() - 1) as f64;
+    let i = (t.floor() as usize).min(A.len() - 2);
+    let f = t - i as f64;
+    let mix = |a: u8, b: u8| (a as f64 + (b as f64 - a as f64) * f).round() as u8;
+    RGBColor(
+        mix(A[i].0, A[i + 1].0),
+        mix(A[i].1, A[i + 1].1),
+        mix(A[i].2, A[i + 1].2),
+    )
+}
+
+/// The log range shown by the sparsity picture: eight decades below the largest entry.
+fn log_range(values: &[f64]) -> (f64, f64) {
+    let hi = values.iter().cloned().fold(0.0f64, f64::max);
+    let hi = if hi > 0.0 { hi } else { 1.0 };
+    (hi * 1e-8, hi)
+}
+
+/// `sparsity.png`: |K| per entry (the largest in each block when the matrix is larger than the
+/// picture), on a log colour scale with a colour bar; entries dropped by thresholding are white.
+pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
+    let (w, h) = (640u32, 560u32);
+    let (lo, hi) = log_range(&p.values);
+    let n = (p.side * p.block) as f64;
+    let (mut img, (xr, yr)) = canvas(w, h, |root| {
+        root.fill(&WHITE)?;
+        let root = root.titled("Kernel matrix magnitudes |K_ij|", (SANS, 18))?;
+        let (left, right) = root.split_horizontally(w - 110);
+        let mut chart = ChartBuilder::on(&left)
+            .margin(10)
+            .x_label_area_size(36)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0f64..n, n..0f64)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .label_style((SANS, 11))
+            .x_desc("column j")
+            .y_desc("row i")
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.0}"))
+            .draw()?;
+        let range = chart.plotting_area().get_pixel_range();
+        let mut bar = ChartBuilder::on(&right)
+            .margin_top(10)
+            .margin_bottom(46)
+            .margin_right(8)
+            .y_label_area_size(62)
+            .build_cartesian_2d(0f64..1f64, (lo..hi).log_scale())?;
+        bar.configure_mesh()
+            .disable_mesh()
+            .disable_x_axis()
+            .label_style((SANS, 11))
+            .y_desc("|K| (log scale)")
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()?;
+        let steps = 128;
+        bar.draw_series((0..steps).map(|i| {
+            let a = lo * (hi / lo).powf(i as f64 / steps as f64);
+            let b = lo * (hi / lo).powf((i + 1) as f64 / steps as f64);
+            Rectangle::new(
+                [(0.0, a), (1.0, b)],
+                viridis((i as f64 + 0.5) / steps as f64).filled(),
+            )
+        }))?;
+        Ok(range)
+    });
+    let (x0, y0) = (xr.start.max(0) as u32, yr.start.max(0) as u32);
+    let (pw, ph) = (
+        (xr.end - xr.start).max(1) as u32,
+        (yr.end - yr.start).max(1) as u32,
+    );
+    let (llo, lhi) = (lo.log10(), hi.log10());
+    for py in 0..ph {
+        let row = (py as usize * p.side / ph as usize).min(p.side - 1);
+        for px in 0..pw {
+            let col = (px as usize * p.side / pw as usize).min(p.side - 1);
+            let v = p.values[row * p.side + col];
+            let color = if v <= 0.0 || v < p.cut {
+                RGBColor(255, 255, 255)
+            } else {
+                viridis((v.log10() - llo) / (lhi - llo))
+            };
+            if x0 + px < w && y0 + py < h {
+                img.put_pixel(x0 + px, y0 + py, image::Rgb([color.0, color.1, color.2]));
+            }
+        }
+    }
+    img
+}
+
+/// `coefficients.png`: the sorted kernel-coefficient magnitudes against their rank, log y axis,
+/// with the keep cut marked (the last kept rank and the smallest kept magnitude).
+pub fn coefficients(c: &Coefficients) -> RgbImage {
+    let (w, h) = (640u32, 420u32);
+    let positive = c.sorted_magnitudes.iter().cloned().filter(|v| *v > 0.0);
+    let hi = positive.clone().fold(0.0f64, f64::max);
+    let lo = positive.fold(f64::INFINITY, f64::min);
+    let (lo, hi) = if hi > 0.0 {
+        (lo.max(hi * 1e-16) / 2.0, hi * 2.0)
+    } else {
+        (1e-16, 1.0)
+    };
+    let x_max = c.matrix_entries.max(1) as f64;
+    canvas(w, h, |root| {
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(root)
+            .caption("Sorted kernel coefficient magnitudes", (SANS, 18))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0f64..x_max, (lo..hi).log_scale())?;
+        chart
+            .configure_mesh()
+            .label_style((SANS, 11))
+            .x_desc("rank (largest first)")
+            .y_desc("|coefficient|")
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()?;
+        let points: Vec<(f64, f64)> = c
+            .sorted_ranks
+            .iter()
+            .zip(&c.sorted_magnitudes)
+            .map(|(&r, &m)| (r as f64, m.max(lo)))
+            .collect();
+        let blue = CHANNELS[2].1;
+        chart
+            .draw_series(LineSeries::new(points, blue.stroke_width(2)))?
+            .label("magnitude")
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 16, y)], blue.stroke_width(2))
+            });
+        let red = CHANNELS[0].1;
+        let kept = c.kept_entries as f64;
+        chart
+            .draw_series(LineSeries::new(
+                vec![(kept, lo), (kept, hi)],
+                red.stroke_width(2),
+            ))?
+            .label(format!(
+                "cut: {} of {} kept",
+                c.kept_entries, c.matrix_entries
+            ))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], red.stroke_width(2)));
+        if c.cut > 0.0 {
+            chart.draw_series(DashedLineSeries::new(
+                vec![(0.0, c.cut), (x_max, c.cut)],
+                6,
+                4,
+                red.stroke_width(1),
+            ))?;
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font((SANS, 12))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()?;
+        Ok(())
+    })
+    .0
+}
+
+/// A 3D `image.png` without a camera renderer: the per-surface images in a labelled grid.
+pub fn surface_grid(names: &[String], fields: &[Field], white: f64, w: u32, h: u32) -> RgbImage {
+    let n = fields.len().max(1) as u32;
+    let cols = (n as f64).sqrt().ceil() as u32;
+    let rows = n.div_ceil(cols);
+    let (cw, ch) = (w / cols, h / rows);
+    let label = 18u32.min(ch / 3);
+    let mut img = RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
+    for (i, f) in fields.iter().enumerate() {
+        let (cx, cy) = ((i as u32 % cols) * cw, (i as u32 / cols) * ch);
+        let size = (
+            cw.saturating_sub(4).max(1),
+            ch.saturating_sub(label + 4).max(1),
+        );
+        let tile = super::surface_image(f, white, size);
+        image::imageops::replace(&mut img, &tile, (cx + 2) as i64, (cy + label + 2) as i64);
+    }
+    let mut buf = img.into_raw();
+    draw_on(&mut buf, w, h, |root| {
+        for (i, name) in names.iter().enumerate() {
+            let (cx, cy) = ((i as u32 % cols) * cw, (i as u32 / cols) * ch);
+            root.draw(&Text::new(
+                name.as_str(),
+                (cx as i32 + 4, cy as i32 + 2),
+                (SANS, label.max(8) as f64 - 4.0).into_font(),
+            ))?;
+        }
+        Ok(())
+    });
+    RgbImage::from_raw(w, h, buf).expect("buffer of w × h × 3")
+}
+
+/// A white image with one line of text (for an artifact that has nothing to show).
+pub fn message(w: u32, h: u32, text: &str) -> RgbImage {
+    canvas(w, h, |root| {
+        root.fill(&WHITE)?;
+        root.draw(&Text::new(text, (10, h as i32 / 2), (SANS, 14).into_font()))?;
+        Ok(())
+    })
+    .0
+}

@@ -1,0 +1,144 @@
+//! The server's configuration: every limit of `spec/api.md` as a command-line flag with a
+//! `WAVRAD_`-prefixed environment variable and a safe default.
+
+use crate::scene::Limits;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+#[derive(Debug, Clone, clap::Args)]
+pub struct Config {
+    /// Address to listen on.
+    #[arg(long, env = "WAVRAD_ADDR", default_value = "127.0.0.1:8080")]
+    pub addr: SocketAddr,
+    /// Largest request body accepted, in bytes (larger: 413).
+    #[arg(long, env = "WAVRAD_MAX_BODY_BYTES", default_value_t = 1 << 20)]
+    pub max_body_bytes: usize,
+    /// Most surfaces in one scene.
+    #[arg(long, env = "WAVRAD_MAX_SURFACES", default_value_t = 64)]
+    pub max_surfaces: usize,
+    /// Highest polynomial order.
+    #[arg(long, env = "WAVRAD_MAX_ORDER", default_value_t = 6)]
+    pub max_order: usize,
+    /// Most cells per segment or quad side.
+    #[arg(long, env = "WAVRAD_MAX_RESOLUTION", default_value_t = 256)]
+    pub max_resolution: usize,
+    /// Most unknowns of the projection system; the dense matrix is basis² × 8 bytes
+    /// (4096 → 128 MiB).
+    #[arg(long, env = "WAVRAD_MAX_BASIS_FUNCTIONS", default_value_t = 4096)]
+    pub max_basis_functions: usize,
+    /// Most pixels of the main image (width × height).
+    #[arg(long, env = "WAVRAD_MAX_IMAGE_PIXELS", default_value_t = 2048 * 2048)]
+    pub max_image_pixels: usize,
+    /// Jobs that may wait for a worker; one more answers 429 with Retry-After.
+    #[arg(long, env = "WAVRAD_QUEUE_CAPACITY", default_value_t = 64)]
+    pub queue_capacity: usize,
+    /// Jobs solved at once (threads of the solver pool); 0 = one per core.
+    #[arg(long, env = "WAVRAD_WORKERS", default_value_t = 0)]
+    pub workers: usize,
+    /// A solve running longer fails (e.g. 300, 300s, 5m, 2h).
+    #[arg(long, env = "WAVRAD_JOB_TIMEOUT", default_value = "300s", value_parser = parse_duration)]
+    pub job_timeout: Duration,
+    /// Longest wait of `POST /api/v1/render` for its result before answering 503.
+    #[arg(long, env = "WAVRAD_SYNC_TIMEOUT", default_value = "30s", value_parser = parse_duration)]
+    pub sync_timeout: Duration,
+    /// How long finished jobs and their results are kept.
+    #[arg(long, env = "WAVRAD_RESULT_TTL", default_value = "7d", value_parser = parse_duration)]
+    pub result_ttl: Duration,
+    /// Where job records and results are kept (created if missing).
+    #[arg(long, env = "WAVRAD_DATA_DIR", default_value = "wavrad-data")]
+    pub data_dir: PathBuf,
+    /// HTTP requests handled at once; more wait, and beyond twice this many are shed with 503.
+    #[arg(long, env = "WAVRAD_MAX_CONCURRENT_REQUESTS", default_value_t = 256)]
+    pub max_concurrent_requests: usize,
+    /// On SIGTERM, how long running solves may take to finish before they are stopped and
+    /// left queued for the next start.
+    #[arg(long, env = "WAVRAD_SHUTDOWN_GRACE", default_value = "10s", value_parser = parse_duration)]
+    pub shutdown_grace: Duration,
+}
+
+impl Config {
+    /// The limits a document is validated against.
+    pub fn limits(&self) -> Limits {
+        Limits {
+            max_surfaces: self.max_surfaces,
+            max_order: self.max_order,
+            max_resolution: self.max_resolution,
+            max_basis_functions: self.max_basis_functions,
+            max_image_pixels: self.max_image_pixels,
+        }
+    }
+
+    /// Worker threads: `workers`, or one per core when 0.
+    pub fn worker_threads(&self) -> usize {
+        if self.workers > 0 {
+            self.workers
+        } else {
+            std::thread::available_parallelism().map_or(2, |n| n.get())
+        }
+    }
+
+    /// Every request is answered within this time (the synchronous render's limit plus slack).
+    pub fn request_timeout(&self) -> Duration {
+        self.sync_timeout + Duration::from_secs(5)
+    }
+
+    /// The defaults of `--help`, with `data_dir` set (for tests and embedding).
+    pub fn with_data_dir(data_dir: impl Into<PathBuf>) -> Config {
+        use clap::Parser;
+        #[derive(clap::Parser)]
+        struct Wrapper {
+            #[command(flatten)]
+            config: Config,
+        }
+        let mut config = Wrapper::parse_from(["wavrad"]).config;
+        config.data_dir = data_dir.into();
+        config
+    }
+}
+
+/// `"90"`, `"90s"`, `"250ms"`, `"5m"`, `"2h"`, `"7d"`.
+pub fn parse_duration(text: &str) -> Result<Duration, String> {
+    let text = text.trim();
+    let split = text
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(text.len());
+    let (number, unit) = text.split_at(split);
+    let value: f64 = number
+        .parse()
+        .map_err(|_| format!("not a duration: {text:?}"))?;
+    let seconds = match unit.trim() {
+        "" | "s" => value,
+        "ms" => value / 1e3,
+        "m" => value * 60.0,
+        "h" => value * 3600.0,
+        "d" => value * 86400.0,
+        other => return Err(format!("unknown unit {other:?} (use ms, s, m, h or d)")),
+    };
+    Duration::try_from_secs_f64(seconds).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn durations() {
+        assert_eq!(parse_duration("90").unwrap(), Duration::from_secs(90));
+        assert_eq!(parse_duration("250ms").unwrap(), Duration::from_millis(250));
+        assert_eq!(parse_duration("5m").unwrap(), Duration::from_secs(300));
+        assert_eq!(
+            parse_duration("7d").unwrap(),
+            Duration::from_secs(7 * 86400)
+        );
+        assert!(parse_duration("soon").is_err());
+        assert!(parse_duration("5y").is_err());
+    }
+
+    #[test]
+    fn defaults_parse() {
+        let c = Config::with_data_dir("/tmp/x");
+        assert_eq!(c.addr.to_string(), "127.0.0.1:8080");
+        assert_eq!(c.limits().max_basis_functions, 4096);
+    }
+}

@@ -1,0 +1,147 @@
+//! Errors as RFC 9457 problem documents (`application/problem+json`), and the middleware that
+//! turns every other error answer (body limits, unknown routes, time-outs, load shedding) into
+//! one, so that a client only ever sees one error format.
+
+use crate::scene::{DocumentErrors, FieldError};
+use axum::body::Body;
+use axum::http::{header, HeaderValue, Response, StatusCode};
+use axum::response::IntoResponse;
+use serde::Serialize;
+use utoipa::ToSchema;
+
+pub const PROBLEM_JSON: &str = "application/problem+json";
+
+/// One error of a document: the JSON pointer at fault and what is wrong there.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct PathError {
+    pub path: String,
+    pub message: String,
+}
+
+impl From<&FieldError> for PathError {
+    fn from(e: &FieldError) -> Self {
+        PathError {
+            path: e.path.clone(),
+            message: e.message.clone(),
+        }
+    }
+}
+
+/// An RFC 9457 problem document.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct Problem {
+    #[serde(rename = "type")]
+    pub kind: String,
+    pub title: String,
+    pub status: u16,
+    pub detail: String,
+    /// For an invalid document: every JSON path at fault.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub errors: Vec<PathError>,
+    /// Seconds after which to try again (429 and 503).
+    #[serde(skip)]
+    pub retry_after: Option<u64>,
+}
+
+impl Problem {
+    pub fn new(status: StatusCode, detail: impl Into<String>) -> Problem {
+        let title = status.canonical_reason().unwrap_or("Error").to_string();
+        Problem {
+            kind: format!("/problems/{}", slug(&title)),
+            title,
+            status: status.as_u16(),
+            detail: detail.into(),
+            errors: Vec::new(),
+            retry_after: None,
+        }
+    }
+
+    pub fn invalid(errors: &DocumentErrors) -> Problem {
+        let mut p = Problem::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            format!("the job document has {} error(s)", errors.0.len()),
+        );
+        p.kind = "/problems/invalid-document".into();
+        p.title = "Invalid job document".into();
+        p.errors = errors.0.iter().map(PathError::from).collect();
+        p
+    }
+
+    pub fn not_found(what: &str) -> Problem {
+        Problem::new(StatusCode::NOT_FOUND, format!("no {what}"))
+    }
+
+    pub fn with_type(mut self, kind: &str, title: &str) -> Problem {
+        self.kind = format!("/problems/{kind}");
+        self.title = title.into();
+        self
+    }
+
+    pub fn retry_after(mut self, seconds: u64) -> Problem {
+        self.retry_after = Some(seconds);
+        self
+    }
+
+    pub fn status(&self) -> StatusCode {
+        StatusCode::from_u16(self.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR)
+    }
+}
+
+fn slug(title: &str) -> String {
+    title
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '-'
+            }
+        })
+        .collect()
+}
+
+impl IntoResponse for Problem {
+    fn into_response(self) -> axum::response::Response {
+        let body = serde_json::to_vec(&self).expect("a problem serialises");
+        let mut res = Response::new(Body::from(body));
+        *res.status_mut() = self.status();
+        res.headers_mut()
+            .insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
+        if let Some(s) = self.retry_after {
+            res.headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(s));
+        }
+        res
+    }
+}
+
+/// Middleware: an error answer (4xx, 5xx) that is not already a problem document becomes one,
+/// keeping its status and its `Retry-After`, and its text as `detail`.
+pub async fn problem_everywhere(res: axum::response::Response) -> axum::response::Response {
+    let status = res.status();
+    let is_problem = res
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v.as_bytes().starts_with(PROBLEM_JSON.as_bytes()));
+    if !(status.is_client_error() || status.is_server_error()) || is_problem {
+        return res;
+    }
+    let retry = res.headers().get(header::RETRY_AFTER).cloned();
+    let text = axum::body::to_bytes(res.into_body(), 64 * 1024)
+        .await
+        .map(|b| String::from_utf8_lossy(&b).trim().to_string())
+        .unwrap_or_default();
+    let detail = if text.is_empty() {
+        status.canonical_reason().unwrap_or("error").to_string()
+    } else {
+        text
+    };
+    let mut res = Problem::new(status, detail).into_response();
+    if let Some(r) = retry {
+        res.headers_mut().insert(header::RETRY_AFTER, r);
+    } else if status == StatusCode::SERVICE_UNAVAILABLE || status == StatusCode::TOO_MANY_REQUESTS {
+        res.headers_mut()
+            .insert(header::RETRY_AFTER, HeaderValue::from(1));
+    }
+    res
+}

@@ -1,0 +1,832 @@
+//! The job queue: a bounded channel of accepted jobs, a dispatcher that hands each to a rayon
+//! pool of `workers` threads when one is free, and the live status of every job.
+//!
+//! Why this shape: the async runtime must never block on a solve, so solves run on the rayon
+//! pool; the dispatcher holds one semaphore permit per running job so that a pool thread that
+//! waits inside a parallel loop never starts a second job on its stack; the channel's capacity
+//! is `queue_capacity`, and a full channel is answered 429. The status of a job lives in a
+//! `tokio::sync::watch` channel: handlers read it, SSE streams follow it, and the solver thread
+//! writes it without an async context.
+//!
+//! Every state change is written to the [`Store`] before it is visible, so that after a crash
+//! or a restart finished jobs are still served and queued or running jobs run again.
+
+use super::config::Config;
+use super::metrics::{Metrics, StateLabel};
+use super::problem::Problem;
+use super::store::{Store, StoreError};
+use crate::job::{JobError, Outcome};
+use crate::progress::{Phase, Progress};
+use crate::scene::Job;
+use axum::http::StatusCode;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use sha2::{Digest, Sha256};
+use std::collections::{BTreeMap, HashMap};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use tokio::sync::{mpsc, watch, Notify, Semaphore};
+use tokio_util::sync::CancellationToken;
+use utoipa::ToSchema;
+
+/// What solves a job: [`crate::job::run`] in production; tests substitute their own.
+pub type SolveFn = Arc<dyn Fn(&Job, &dyn Progress) -> Result<Outcome, JobError> + Send + Sync>;
+
+/// The state of a job.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum JobState {
+    Queued,
+    Running,
+    Succeeded,
+    Failed,
+    Cancelled,
+}
+
+impl JobState {
+    pub fn is_final(self) -> bool {
+        matches!(
+            self,
+            JobState::Succeeded | JobState::Failed | JobState::Cancelled
+        )
+    }
+    pub fn as_str(self) -> &'static str {
+        match self {
+            JobState::Queued => "queued",
+            JobState::Running => "running",
+            JobState::Succeeded => "succeeded",
+            JobState::Failed => "failed",
+            JobState::Cancelled => "cancelled",
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ProgressInfo {
+    /// `queued`, `projection`, `transform`, `refinement`, `solve`, `reference`, `metrics`,
+    /// `render`, `done`.
+    pub phase: String,
+    /// 0 to 1 within the phase.
+    pub fraction: f64,
+}
+
+/// Where a job's outputs are (present from the start; 409 until the job has succeeded).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Links {
+    #[serde(rename = "self")]
+    pub this: String,
+    pub events: String,
+    pub result: String,
+    pub image: String,
+    pub sparsity: String,
+    pub coefficients: String,
+    /// Surface name → its image.
+    pub surfaces: BTreeMap<String, String>,
+}
+
+impl Links {
+    fn new(id: &str, surfaces: &[String]) -> Links {
+        let base = format!("/api/v1/jobs/{id}");
+        Links {
+            this: base.clone(),
+            events: format!("{base}/events"),
+            result: format!("{base}/result"),
+            image: format!("{base}/image.png"),
+            sparsity: format!("{base}/sparsity.png"),
+            coefficients: format!("{base}/coefficients.png"),
+            surfaces: surfaces
+                .iter()
+                .map(|s| (s.clone(), format!("{base}/surfaces/{s}.png")))
+                .collect(),
+        }
+    }
+}
+
+/// The failure of a job, as a problem document.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct JobFailure {
+    #[serde(rename = "type")]
+    pub kind: String,
+    pub title: String,
+    pub status: u16,
+    pub detail: String,
+}
+
+impl JobFailure {
+    fn new(kind: &str, title: &str, status: StatusCode, detail: impl Into<String>) -> JobFailure {
+        JobFailure {
+            kind: format!("/problems/{kind}"),
+            title: title.into(),
+            status: status.as_u16(),
+            detail: detail.into(),
+        }
+    }
+
+    pub fn to_problem(&self) -> Problem {
+        let mut p = Problem::new(
+            StatusCode::from_u16(self.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR),
+            self.detail.clone(),
+        );
+        p.kind = self.kind.clone();
+        p.title = self.title.clone();
+        p
+    }
+}
+
+/// The status of a job, as `GET /api/v1/jobs/{id}` answers it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct JobStatus {
+    /// The content hash of the document (same document, same id).
+    pub id: String,
+    pub state: JobState,
+    /// The scene's name, when it has one.
+    pub scene: Option<String>,
+    /// `flatland`, `3d` or `fredholm`.
+    pub kind: String,
+    /// Milliseconds since the Unix epoch.
+    pub created_ms: u64,
+    pub started_ms: Option<u64>,
+    pub finished_ms: Option<u64>,
+    pub progress: ProgressInfo,
+    /// When failed: why.
+    pub error: Option<JobFailure>,
+    pub links: Links,
+}
+
+/// What the store keeps per job.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Record {
+    document: Value,
+    status: JobStatus,
+}
+
+/// Why a running solve is asked to stop.
+const GO_ON: u8 = 0;
+const CANCEL: u8 = 1;
+const SHUTDOWN: u8 = 2;
+
+/// One job known to the server.
+pub struct Entry {
+    pub id: String,
+    document: Value,
+    /// The validated document (`None` for jobs that had finished before this start).
+    job: Option<Job>,
+    status: watch::Sender<JobStatus>,
+    stop: AtomicU8,
+}
+
+impl Entry {
+    pub fn status(&self) -> JobStatus {
+        self.status.borrow().clone()
+    }
+
+    pub fn subscribe(&self) -> watch::Receiver<JobStatus> {
+        self.status.subscribe()
+    }
+}
+
+/// The content hash of a document: SHA-256 of its canonical JSON (object keys sorted, no
+/// whitespace), first 128 bits in hex.
+pub fn job_id(document: &Value) -> String {
+    fn canonical(v: &Value, out: &mut String) {
+        match v {
+            Value::Object(map) => {
+                let mut keys: Vec<&String> = map.keys().collect();
+                keys.sort();
+                out.push('{');
+                for (i, k) in keys.into_iter().enumerate() {
+                    if i > 0 {
+                        out.push(',');
+                    }
+                    out.push_str(&Value::String(k.clone()).to_string());
+                    out.push(':');
+                    canonical(&map[k], out);
+                }
+                out.push('}');
+            }
+            Value::Array(items) => {
+                out.push('[');
+                for (i, item) in items.iter().enumerate() {
+                    if i > 0 {
+                        out.push(',');
+                    }
+                    canonical(item, out);
+                }
+                out.push(']');
+            }
+            other => out.push_str(&other.to_string()),
+        }
+    }
+    let mut text = String::new();
+    canonical(document, &mut text);
+    let digest = Sha256::digest(text.as_bytes());
+    digest[..16].iter().map(|b| format!("{b:02x}")).collect()
+}
+
+pub fn now_ms() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as u64)
+}
+
+/// The answer to a submission.
+pub enum Submitted {
+    /// A new job, queued.
+    New(Arc<Entry>),
+    /// The same document was already known: its job.
+    Existing(Arc<Entry>),
+}
+
+struct Inner {
+    entries: Mutex<HashMap<String, Arc<Entry>>>,
+    sender: mpsc::Sender<Arc<Entry>>,
+    store: Store,
+    pool: rayon::ThreadPool,
+    solve: SolveFn,
+    config: Config,
+    metrics: Arc<Metrics>,
+    draining: AtomicBool,
+    running: AtomicUsize,
+    idle: Notify,
+}
+
+/// The job queue (cheap to clone: a handle).
+#[derive(Clone)]
+pub struct Queue {
+    inner: Arc<Inner>,
+}
+
+impl Queue {
+    /// Opens the store under `config.data_dir`, restores its jobs (queued and running ones are
+    /// queued again) and starts the dispatcher. Needs a tokio runtime.
+    pub fn start(
+        config: Config,
+        solve: SolveFn,
+        metrics: Arc<Metrics>,
+        shutdown: CancellationToken,
+    ) -> Result<Queue, StoreError> {
+        let store = Store::open(&config.data_dir)?;
+        let workers = config.worker_threads();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(workers)
+            .thread_name(|i| format!("wavrad-solve-{i}"))
+            .panic_handler(|_| tracing::error!("a task of the solver pool panicked"))
+            .build()
+            .map_err(|e| StoreError::Io(std::io::Error::other(e)))?;
+        let (sender, receiver) = mpsc::channel(config.queue_capacity.max(1));
+        let queue = Queue {
+            inner: Arc::new(Inner {
+                entries: Mutex::new(HashMap::new()),
+                sender,
+                store,
+                pool,
+                solve,
+                config,
+                metrics,
+                draining: AtomicBool::new(false),
+                running: AtomicUsize::new(0),
+                idle: Notify::new(),
+            }),
+        };
+        let requeue = queue.restore()?;
+        tokio::spawn(dispatch(
+            queue.clone(),
+            receiver,
+            Arc::new(Semaphore::new(workers)),
+            shutdown.clone(),
+        ));
+        let sender = queue.inner.sender.clone();
+        tokio::spawn(async move {
+            for entry in requeue {
+                if sender.send(entry).await.is_err() {
+                    break;
+                }
+            }
+        });
+        tokio::spawn(janitor(queue.clone(), shutdown));
+        Ok(queue)
+    }
+
+    /// Loads every record: finished ones as they are (unless expired), the others queued.
+    fn restore(&self) -> Result<Vec<Arc<Entry>>, StoreError> {
+        let inner = &self.inner;
+        let records: Vec<Record> = inner.store.jobs()?;
+        let limits = inner.config.limits();
+        let mut requeue = Vec::new();
+        let mut entries = inner.entries.lock().expect("entries lock");
+        for Record {
+            document,
+            mut status,
+        } in records
+        {
+            if self.expired(&status) {
+                inner.store.remove(&status.id)?;
+                continue;
+            }
+            let mut job = None;
+            if !status.state.is_final() {
+                match crate::scene::parse_value(&document, &limits) {
+                    Ok(j) => {
+                        job = Some(j);
+                        status.state = JobState::Queued;
+                        status.started_ms = None;
+                        status.progress = queued();
+                    }
+                    Err(errors) => {
+                        status.state = JobState::Failed;
+                        status.finished_ms = Some(now_ms());
+                        let p = Problem::invalid(&errors);
+                        status.error = Some(JobFailure::new(
+                            "invalid-document",
+                            "Invalid job document",
+                            StatusCode::UNPROCESSABLE_ENTITY,
+                            format!("the limits of this server refuse the document: {errors}"),
+                        ));
+                        tracing::warn!(id = %status.id, errors = p.errors.len(), "a restored job no longer validates");
+                    }
+                }
+                inner.store.put_job(
+                    &status.id,
+                    &Record {
+                        document: document.clone(),
+                        status: status.clone(),
+                    },
+                )?;
+            }
+            let entry = Arc::new(Entry {
+                id: status.id.clone(),
+                document,
+                job,
+                stop: AtomicU8::new(GO_ON),
+                status: watch::channel(status).0,
+            });
+            if entry.job.is_some() {
+                requeue.push(entry.clone());
+            }
+            entries.insert(entry.id.clone(), entry);
+        }
+        if !requeue.is_empty() {
+            tracing::info!(jobs = requeue.len(), "queued again after a restart");
+        }
+        requeue.sort_by_key(|e| e.status().created_ms);
+        Ok(requeue)
+    }
+
+    fn expired(&self, status: &JobStatus) -> bool {
+        let ttl = self.inner.config.result_ttl.as_millis() as u64;
+        status
+            .finished_ms
+            .is_some_and(|f| f.saturating_add(ttl) <= now_ms())
+    }
+
+    /// Queues a validated document, or answers the job that already has this document.
+    /// Blocks on the store: call from a blocking context.
+    pub fn submit(&self, document: Value, job: Job) -> Result<Submitted, Problem> {
+        let inner = &self.inner;
+        let id = job_id(&document);
+        let mut entries = inner.entries.lock().expect("entries lock");
+        if let Some(e) = entries.get(&id) {
+            return Ok(Submitted::Existing(e.clone()));
+        }
+        if inner.draining.load(Ordering::SeqCst) {
+            return Err(Problem::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "the server is shutting down",
+            )
+            .retry_after(5));
+        }
+        if inner.sender.capacity() == 0 {
+            return Err(queue_full(&inner.config));
+        }
+        let names = job.surface_names();
+        let status = JobStatus {
+            id: id.clone(),
+            state: JobState::Queued,
+            scene: job.scene.name.clone(),
+            kind: job.scene.kind.name().to_string(),
+            created_ms: now_ms(),
+            started_ms: None,
+            finished_ms: None,
+            progress: queued(),
+            error: None,
+            links: Links::new(&id, &names),
+        };
+        let record = Record {
+            document: document.clone(),
+            status: status.clone(),
+        };
+        inner.store.put_job(&id, &record).map_err(internal)?;
+        let entry = Arc::new(Entry {
+            id: id.clone(),
+            document,
+            job: Some(job),
+            stop: AtomicU8::new(GO_ON),
+            status: watch::channel(status).0,
+        });
+        if inner.sender.try_send(entry.clone()).is_err() {
+            inner.store.remove(&id).map_err(internal)?;
+            return Err(queue_full(&inner.config));
+        }
+        entries.insert(id, entry.clone());
+        tracing::info!(id = %entry.id, "job queued");
+        Ok(Submitted::New(entry))
+    }
+
+    pub fn get(&self, id: &str) -> Option<Arc<Entry>> {
+        self.inner
+            .entries
+            .lock()
+            .expect("entries lock")
+            .get(id)
+            .cloned()
+    }
+
+    /// Jobs, newest first.
+    pub fn list(&self, limit: usize) -> Vec<JobStatus> {
+        let mut all: Vec<JobStatus> = self
+            .inner
+            .entries
+            .lock()
+            .expect("entries lock")
+            .values()
+            .map(|e| e.status())
+            .collect();
+        all.sort_by(|a, b| {
+            b.created_ms
+                .cmp(&a.created_ms)
+                .then_with(|| a.id.cmp(&b.id))
+        });
+        all.truncate(limit);
+        all
+    }
+
+    /// Cancels a job (a running solve stops at its next check, well within a second) and
+    /// forgets it. `false` when unknown. Blocks on the store.
+    pub fn delete(&self, id: &str) -> Result<bool, StoreError> {
+        let Some(entry) = self.inner.entries.lock().expect("entries lock").remove(id) else {
+            return Ok(false);
+        };
+        entry.stop.store(CANCEL, Ordering::SeqCst);
+        entry.status.send_modify(|s| {
+            if !s.state.is_final() {
+                s.state = JobState::Cancelled;
+                s.finished_ms = Some(now_ms());
+            }
+        });
+        self.inner.store.remove(id)?;
+        tracing::info!(id, "job cancelled and forgotten");
+        Ok(true)
+    }
+
+    /// A file of a finished job. Blocks on the store.
+    pub fn file(&self, id: &str, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
+        self.inner.store.file(id, name)
+    }
+
+    /// Whether new jobs are taken (not shutting down, room in the queue).
+    pub fn ready(&self) -> bool {
+        !self.inner.draining.load(Ordering::SeqCst) && self.inner.sender.capacity() > 0
+    }
+
+    /// Refreshes the job gauges (called when `/metrics` is read).
+    pub fn update_gauges(&self) {
+        let mut counts: BTreeMap<&str, i64> = BTreeMap::new();
+        for s in [
+            JobState::Queued,
+            JobState::Running,
+            JobState::Succeeded,
+            JobState::Failed,
+            JobState::Cancelled,
+        ] {
+            counts.insert(s.as_str(), 0);
+        }
+        for e in self.inner.entries.lock().expect("entries lock").values() {
+            *counts.entry(e.status.borrow().state.as_str()).or_default() += 1;
+        }
+        let m = &self.inner.metrics;
+        m.queue_depth.set(counts["queued"]);
+        for (state, n) in counts {
+            m.jobs
+                .get_or_create(&StateLabel {
+                    state: state.to_string(),
+                })
+                .set(n);
+        }
+    }
+
+    /// Stops taking jobs, lets running solves finish for up to `grace`, then stops them and
+    /// leaves them queued in the store for the next start. Queued jobs stay queued.
+    pub async fn shutdown(&self, grace: Duration) {
+        let inner = &self.inner;
+        inner.draining.store(true, Ordering::SeqCst);
+        let wait_idle = |limit: Duration| async move {
+            let deadline = tokio::time::Instant::now() + limit;
+            while inner.running.load(Ordering::SeqCst) > 0 {
+                let notified = inner.idle.notified();
+                if inner.running.load(Ordering::SeqCst) == 0 {
+                    break;
+                }
+                if tokio::time::timeout_at(deadline, notified).await.is_err() {
+                    return false;
+                }
+            }
+            true
+        };
+        if wait_idle(grace).await {
+            return;
+        }
+        tracing::warn!("stopping running solves; they stay queued for the next start");
+        for e in inner.entries.lock().expect("entries lock").values() {
+            e.stop
+                .compare_exchange(GO_ON, SHUTDOWN, Ordering::SeqCst, Ordering::SeqCst)
+                .ok();
+        }
+        wait_idle(Duration::from_secs(5)).await;
+    }
+
+    /// Runs one job on the current (pool) thread.
+    fn run(&self, entry: Arc<Entry>) {
+        let inner = &self.inner;
+        let Some(job) = entry.job.as_ref() else {
+            return;
+        };
+        if entry.stop.load(Ordering::SeqCst) != GO_ON || inner.draining.load(Ordering::SeqCst) {
+            return;
+        }
+        inner.running.fetch_add(1, Ordering::SeqCst);
+        let start = Instant::now();
+        entry.status.send_modify(|s| {
+            s.state = JobState::Running;
+            s.started_ms = Some(now_ms());
+            s.progress = ProgressInfo {
+                phase: "projection".into(),
+                fraction: 0.0,
+            };
+        });
+        self.persist(&entry, &[]);
+        let watch = Watch {
+            entry: &entry,
+            deadline: start + inner.config.job_timeout,
+            timed_out: AtomicBool::new(false),
+        };
+        let run = catch_unwind(AssertUnwindSafe(|| {
+            let outcome = (inner.solve)(job, &watch)?;
+            watch.report(Phase::Render, 0.0);
+            let images = crate::render::render_all(job, &outcome);
+            let json = serde_json::to_vec_pretty(&outcome.result).expect("a result serialises");
+            Ok::<_, JobError>((json, images))
+        }));
+        inner
+            .metrics
+            .solve_seconds
+            .observe(start.elapsed().as_secs_f64());
+        let stop = entry.stop.load(Ordering::SeqCst);
+        // The final status is written to the store before it is published, so that whoever
+        // sees `succeeded` can read the result.
+        let mut status = entry.status();
+        let mut failure = |kind: &str, title: &str, code: StatusCode, detail: String| {
+            tracing::warn!(id = %entry.id, %detail, "job failed");
+            status.state = JobState::Failed;
+            status.finished_ms = Some(now_ms());
+            status.error = Some(JobFailure::new(kind, title, code, detail));
+        };
+        let mut files = Vec::new();
+        match run {
+            Ok(Ok((json, images))) => {
+                files.push(("result.json".to_string(), json));
+                files.extend(images.files().into_iter().map(|(n, b)| (n, b.to_vec())));
+                status.state = JobState::Succeeded;
+                status.finished_ms = Some(now_ms());
+                status.progress = ProgressInfo {
+                    phase: "done".into(),
+                    fraction: 1.0,
+                };
+                tracing::info!(id = %entry.id, seconds = start.elapsed().as_secs_f64(), "job succeeded");
+            }
+            Ok(Err(JobError::Cancelled)) if stop == SHUTDOWN => {
+                status.state = JobState::Queued;
+                status.started_ms = None;
+                status.progress = queued();
+            }
+            Ok(Err(JobError::Cancelled)) if watch.timed_out.load(Ordering::SeqCst) => failure(
+                "timeout",
+                "The solve ran too long",
+                StatusCode::GATEWAY_TIMEOUT,
+                format!(
+                    "the solve ran past job_timeout ({:?}) and was stopped",
+                    inner.config.job_timeout
+                ),
+            ),
+            Ok(Err(JobError::Cancelled)) => {}
+            Ok(Err(JobError::Diverged(m))) => failure(
+                "diverged",
+                "The solve failed",
+                StatusCode::INTERNAL_SERVER_ERROR,
+                m,
+            ),
+            Ok(Err(JobError::Unsupported(m))) => failure(
+                "unsupported",
+                "Not supported",
+                StatusCode::UNPROCESSABLE_ENTITY,
+                m,
+            ),
+            Err(panic) => {
+                let msg = panic
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_else(|| "unknown panic".into());
+                failure(
+                    "panic",
+                    "The solve failed",
+                    StatusCode::INTERNAL_SERVER_ERROR,
+                    format!("the solver panicked: {msg}"),
+                )
+            }
+        }
+        if entry.stop.load(Ordering::SeqCst) != CANCEL {
+            let files: Vec<(String, &[u8])> = files
+                .iter()
+                .map(|(n, b)| (n.clone(), b.as_slice()))
+                .collect();
+            self.write(&entry, status.clone(), &files);
+            entry.status.send_replace(status);
+        }
+        inner.running.fetch_sub(1, Ordering::SeqCst);
+        inner.idle.notify_waiters();
+    }
+
+    fn persist(&self, entry: &Entry, files: &[(String, &[u8])]) {
+        self.write(entry, entry.status(), files)
+    }
+
+    fn write(&self, entry: &Entry, status: JobStatus, files: &[(String, &[u8])]) {
+        let record = Record {
+            document: entry.document.clone(),
+            status,
+        };
+        if let Err(e) = self.inner.store.put_finished(&entry.id, &record, files) {
+            tracing::error!(id = %entry.id, error = %e, "could not write the job to the store");
+        }
+        if entry.stop.load(Ordering::SeqCst) == CANCEL {
+            // Deleted while this write was under way: forget it again.
+            let _ = self.inner.store.remove(&entry.id);
+        }
+    }
+
+    /// Forgets finished jobs older than `result_ttl`.
+    fn expire(&self) {
+        let expired: Vec<String> = self
+            .inner
+            .entries
+            .lock()
+            .expect("entries lock")
+            .values()
+            .filter(|e| self.expired(&e.status.borrow()))
+            .map(|e| e.id.clone())
+            .collect();
+        for id in expired {
+            self.inner.entries.lock().expect("entries lock").remove(&id);
+            if let Err(e) = self.inner.store.remove(&id) {
+                tracing::error!(%id, error = %e, "could not expire a job");
+            }
+        }
+    }
+}
+
+fn queued() -> ProgressInfo {
+    ProgressInfo {
+        phase: "queued".into(),
+        fraction: 0.0,
+    }
+}
+
+fn queue_full(config: &Config) -> Problem {
+    Problem::new(
+        StatusCode::TOO_MANY_REQUESTS,
+        format!(
+            "the queue is full ({} jobs waiting); try again later",
+            config.queue_capacity
+        ),
+    )
+    .with_type("queue-full", "Queue full")
+    .retry_after(5)
+}
+
+fn internal(e: StoreError) -> Problem {
+    tracing::error!(error = %e, "store failure");
+    Problem::new(StatusCode::INTERNAL_SERVER_ERROR, "the job store failed")
+}
+
+/// Hands queued jobs to the pool, one per free worker. A worker slot is taken before a job
+/// is received, so that waiting jobs stay in the bounded channel and count against its
+/// capacity.
+async fn dispatch(
+    queue: Queue,
+    mut receiver: mpsc::Receiver<Arc<Entry>>,
+    slots: Arc<Semaphore>,
+    shutdown: CancellationToken,
+) {
+    loop {
+        let permit = tokio::select! {
+            _ = shutdown.cancelled() => return,
+            p = slots.clone().acquire_owned() => p.expect("the semaphore is never closed"),
+        };
+        let entry = loop {
+            let entry = tokio::select! {
+                _ = shutdown.cancelled() => return,
+                e = receiver.recv() => match e { Some(e) => e, None => return },
+            };
+            if entry.stop.load(Ordering::SeqCst) == GO_ON {
+                break entry;
+            }
+        };
+        let q = queue.clone();
+        queue.inner.pool.spawn(move || {
+            q.run(entry);
+            drop(permit);
+        });
+    }
+}
+
+/// Expires old results now and then.
+async fn janitor(queue: Queue, shutdown: CancellationToken) {
+    let every = (queue.inner.config.result_ttl / 4)
+        .clamp(Duration::from_millis(200), Duration::from_secs(60));
+    let mut tick = tokio::time::interval(every);
+    loop {
+        tokio::select! {
+            _ = shutdown.cancelled() => return,
+            _ = tick.tick() => {
+                let q = queue.clone();
+                let _ = tokio::task::spawn_blocking(move || q.expire()).await;
+            }
+        }
+    }
+}
+
+/// The [`Progress`] of one running job: updates its status, stops on cancel, shutdown or
+/// `job_timeout`.
+struct Watch<'a> {
+    entry: &'a Entry,
+    deadline: Instant,
+    timed_out: AtomicBool,
+}
+
+impl Progress for Watch<'_> {
+    fn report(&self, phase: Phase, fraction: f64) {
+        let fraction = if fraction.is_finite() {
+            fraction.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        self.entry.status.send_if_modified(|s| {
+            let p = &mut s.progress;
+            let changed = p.phase != phase.as_str()
+                || (fraction - p.fraction).abs() >= 0.01
+                || (fraction == 1.0 && p.fraction != 1.0);
+            if changed {
+                *p = ProgressInfo {
+                    phase: phase.as_str().into(),
+                    fraction,
+                };
+            }
+            changed
+        });
+    }
+
+    fn cancelled(&self) -> bool {
+        if self.entry.stop.load(Ordering::SeqCst) != GO_ON {
+            return true;
+        }
+        if Instant::now() > self.deadline {
+            self.timed_out.store(true, Ordering::SeqCst);
+            return true;
+        }
+        false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ids_ignore_key_order_and_whitespace() {
+        let a: Value = serde_json::from_str(
+            r#"{"scene": {"kind": "fredholm", "domain": [0, 1]}, "solver": {}}"#,
+        )
+        .unwrap();
+        let b: Value =
+            serde_json::from_str(r#"{"solver":{},"scene":{"domain":[0,1],"kind":"fredholm"}}"#)
+                .unwrap();
+        let c: Value =
+            serde_json::from_str(r#"{"solver":{},"scene":{"domain":[0,2],"kind":"fredholm"}}"#)
+                .unwrap();
+        assert_eq!(job_id(&a), job_id(&b));
+        assert_ne!(job_id(&a), job_id(&c));
+        assert_eq!(job_id(&a).len(), 32);
+    }
+}

@@ -1,0 +1,547 @@
+//! The handlers of `spec/api.md`, one per route, and the reading of a job document from a
+//! request (content type → size → UTF-8 → JSON → document), each failure its own status.
+
+use super::problem::Problem;
+use super::queue::{Entry, JobState, JobStatus, Submitted};
+use super::AppState;
+use crate::scene::Job;
+use axum::body::Body;
+use axum::extract::{Path, Query, Request, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{Html, IntoResponse, Response};
+use axum::routing::get;
+use axum::{Json, Router};
+use futures_util::StreamExt;
+use serde::Deserialize;
+use serde_json::Value;
+use sha2::{Digest, Sha256};
+use std::convert::Infallible;
+use std::sync::Arc;
+
+pub fn router(state: AppState) -> Router {
+    Router::new()
+        .route("/api/v1/jobs", get(list_jobs).post(create_job))
+        .route("/api/v1/jobs/{id}", get(job_status).delete(delete_job))
+        .route("/api/v1/jobs/{id}/events", get(job_events))
+        .route("/api/v1/jobs/{id}/result", get(job_result))
+        .route("/api/v1/jobs/{id}/{artifact}", get(job_artifact))
+        .route("/api/v1/jobs/{id}/surfaces/{file}", get(job_surface))
+        .route("/api/v1/render", axum::routing::post(render_now))
+        .route("/api/v1/openapi.json", get(openapi))
+        .route("/healthz", get(healthz))
+        .route("/readyz", get(readyz))
+        .route("/metrics", get(metrics))
+        .route("/", get(index))
+        .route("/static/{file}", get(static_file))
+        .route("/scenes/{file}", get(scene_file))
+        .route_layer(axum::middleware::from_fn_with_state(
+            state.metrics.clone(),
+            super::metrics::count_requests,
+        ))
+        .fallback(|| async { Problem::new(StatusCode::NOT_FOUND, "no such route") })
+        .with_state(state)
+}
+
+/// Reads and validates a job document: 415 unless the content type is JSON, 413 past
+/// `max_body_bytes`, 400 unless UTF-8 JSON, 422 with every path at fault.
+pub async fn read_document(
+    state: &AppState,
+    headers: &HeaderMap,
+    body: Body,
+) -> Result<(Value, Job), Problem> {
+    let content_type = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let mime = content_type
+        .split(';')
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase();
+    if !(mime == "application/json"
+        || (mime.starts_with("application/") && mime.ends_with("+json")))
+    {
+        return Err(Problem::new(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            format!("send the job document as application/json (got {content_type:?})"),
+        ));
+    }
+    let limit = state.config.max_body_bytes;
+    let bytes = axum::body::to_bytes(body, limit).await.map_err(|e| {
+        let text = format!("{e} {:?}", std::error::Error::source(&e));
+        if text.to_ascii_lowercase().contains("length limit") {
+            Problem::new(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!("the body is larger than max_body_bytes ({limit} bytes)"),
+            )
+        } else {
+            Problem::new(
+                StatusCode::BAD_REQUEST,
+                format!("could not read the body: {e}"),
+            )
+        }
+    })?;
+    let text = std::str::from_utf8(&bytes).map_err(|e| {
+        Problem::new(
+            StatusCode::BAD_REQUEST,
+            format!("the body is not UTF-8: {e}"),
+        )
+    })?;
+    let value: Value = serde_json::from_str(text).map_err(|e| {
+        Problem::new(
+            StatusCode::BAD_REQUEST,
+            format!("the body is not JSON: {e}"),
+        )
+        .with_type("not-json", "Not JSON")
+    })?;
+    let job = crate::scene::parse_value(&value, &state.config.limits())
+        .map_err(|e| Problem::invalid(&e))?;
+    Ok((value, job))
+}
+
+async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> T {
+    tokio::task::spawn_blocking(f)
+        .await
+        .expect("a blocking task panicked")
+}
+
+fn entry(state: &AppState, id: &str) -> Result<Arc<Entry>, Problem> {
+    state
+        .queue
+        .get(id)
+        .ok_or_else(|| Problem::not_found(&format!("job {id}")))
+}
+
+async fn submit(state: &AppState, document: Value, job: Job) -> Result<Submitted, Problem> {
+    let queue = state.queue.clone();
+    blocking(move || queue.submit(document, job)).await
+}
+
+/// Queue a job document.
+#[utoipa::path(post, path = "/api/v1/jobs", tag = "jobs",
+    request_body(content = super::openapi::JobDocument, content_type = "application/json"),
+    responses(
+        (status = 202, description = "queued", body = JobStatus, headers(("Location" = String, description = "the job"))),
+        (status = 200, description = "the same document was already submitted: its job", body = JobStatus),
+        (status = 400, description = "not JSON or not UTF-8", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "body too large", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "not application/json", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "invalid document, every path at fault", body = Problem, content_type = "application/problem+json"),
+        (status = 429, description = "queue full (Retry-After)", body = Problem, content_type = "application/problem+json"),
+    ))]
+pub async fn create_job(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, Problem> {
+    let (document, job) = read_document(&state, &headers, body).await?;
+    let (status, entry) = match submit(&state, document, job).await? {
+        Submitted::New(e) => (StatusCode::ACCEPTED, e),
+        Submitted::Existing(e) if e.status().state.is_final() => (StatusCode::OK, e),
+        Submitted::Existing(e) => (StatusCode::ACCEPTED, e),
+    };
+    let job = entry.status();
+    let location = HeaderValue::from_str(&job.links.this).expect("ids are hex");
+    Ok((status, [(header::LOCATION, location)], Json(job)).into_response())
+}
+
+#[derive(Debug, Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct ListQuery {
+    /// At most this many (default 50, at most 1000).
+    limit: Option<usize>,
+}
+
+/// Recent jobs, newest first.
+#[utoipa::path(get, path = "/api/v1/jobs", tag = "jobs", params(ListQuery),
+    responses((status = 200, body = Vec<JobStatus>)))]
+pub async fn list_jobs(
+    State(state): State<AppState>,
+    Query(q): Query<ListQuery>,
+) -> Json<Vec<JobStatus>> {
+    Json(state.queue.list(q.limit.unwrap_or(50).min(1000)))
+}
+
+/// A job's status.
+#[utoipa::path(get, path = "/api/v1/jobs/{id}", tag = "jobs", params(("id" = String, Path)),
+    responses((status = 200, body = JobStatus), (status = 404, body = Problem, content_type = "application/problem+json")))]
+pub async fn job_status(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<JobStatus>, Problem> {
+    Ok(Json(entry(&state, &id)?.status()))
+}
+
+/// Cancel a job (a running solve stops within a second) and forget it.
+#[utoipa::path(delete, path = "/api/v1/jobs/{id}", tag = "jobs", params(("id" = String, Path)),
+    responses((status = 204), (status = 404, body = Problem, content_type = "application/problem+json")))]
+pub async fn delete_job(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<StatusCode, Problem> {
+    let queue = state.queue.clone();
+    let key = id.clone();
+    match blocking(move || queue.delete(&key)).await {
+        Ok(true) => Ok(StatusCode::NO_CONTENT),
+        Ok(false) => Err(Problem::not_found(&format!("job {id}"))),
+        Err(e) => Err(Problem::new(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            e.to_string(),
+        )),
+    }
+}
+
+/// The status as Server-Sent Events (`event: status`), one per change, closing when the job
+/// ends (or the server shuts down).
+#[utoipa::path(get, path = "/api/v1/jobs/{id}/events", tag = "jobs", params(("id" = String, Path)),
+    responses((status = 200, description = "text/event-stream of JobStatus events", body = String, content_type = "text/event-stream"),
+        (status = 404, body = Problem, content_type = "application/problem+json")))]
+pub async fn job_events(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Response, Problem> {
+    let rx = entry(&state, &id)?.subscribe();
+    let stream =
+        futures_util::stream::unfold((rx, false, true), |(mut rx, ended, first)| async move {
+            if ended || (!first && rx.changed().await.is_err()) {
+                return None;
+            }
+            let status = rx.borrow_and_update().clone();
+            let ended = status.state.is_final();
+            let event = Event::default()
+                .event("status")
+                .json_data(&status)
+                .expect("a status serialises");
+            Some((Ok::<_, Infallible>(event), (rx, ended, false)))
+        })
+        .take_until(state.shutdown.clone().cancelled_owned());
+    Ok(Sse::new(stream)
+        .keep_alive(KeepAlive::default())
+        .into_response())
+}
+
+/// 404 for an unknown job, 409 (with the job's state) until it has succeeded.
+fn finished(state: &AppState, id: &str) -> Result<JobStatus, Problem> {
+    let status = entry(state, id)?.status();
+    match status.state {
+        JobState::Succeeded => Ok(status),
+        JobState::Failed => Err(Problem::new(
+            StatusCode::CONFLICT,
+            format!(
+                "job {id} failed: {}",
+                status.error.as_ref().map_or("", |e| e.detail.as_str())
+            ),
+        )
+        .with_type("job-failed", "Job failed")),
+        s => Err(Problem::new(
+            StatusCode::CONFLICT,
+            format!(
+                "job {id} is {}; try again when it has succeeded",
+                s.as_str()
+            ),
+        )
+        .with_type("not-finished", "Not finished")),
+    }
+}
+
+async fn stored(state: &AppState, id: &str, name: &str) -> Result<Vec<u8>, Problem> {
+    let queue = state.queue.clone();
+    let (key, file) = (id.to_string(), name.to_string());
+    match blocking(move || queue.file(&key, &file)).await {
+        Ok(Some(bytes)) => Ok(bytes),
+        Ok(None) => Err(Problem::not_found(&format!("{name} for job {id}"))),
+        Err(e) => Err(Problem::new(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            e.to_string(),
+        )),
+    }
+}
+
+/// The result JSON of a job.
+#[utoipa::path(get, path = "/api/v1/jobs/{id}/result", tag = "results", params(("id" = String, Path)),
+    responses((status = 200, body = super::openapi::ResultDocument),
+        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 409, body = Problem, content_type = "application/problem+json")))]
+pub async fn job_result(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Response, Problem> {
+    finished(&state, &id)?;
+    let bytes = stored(&state, &id, "result.json").await?;
+    Ok(([(header::CONTENT_TYPE, "application/json")], bytes).into_response())
+}
+
+/// `image.png`, `sparsity.png` or `coefficients.png` of a job.
+#[utoipa::path(get, path = "/api/v1/jobs/{id}/{artifact}", tag = "results",
+    params(("id" = String, Path), ("artifact" = String, Path, description = "image.png, sparsity.png or coefficients.png")),
+    responses((status = 200, content_type = "image/png", body = Vec<u8>),
+        (status = 304, description = "If-None-Match matched the ETag"),
+        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 409, body = Problem, content_type = "application/problem+json")))]
+pub async fn job_artifact(
+    State(state): State<AppState>,
+    Path((id, artifact)): Path<(String, String)>,
+    headers: HeaderMap,
+) -> Result<Response, Problem> {
+    if !matches!(
+        artifact.as_str(),
+        "image.png" | "sparsity.png" | "coefficients.png"
+    ) {
+        return Err(Problem::not_found(&format!(
+            "artifact {artifact} (image.png, sparsity.png, coefficients.png)"
+        )));
+    }
+    finished(&state, &id)?;
+    let bytes = stored(&state, &id, &artifact).await?;
+    Ok(png(bytes, &headers))
+}
+
+/// The image of one surface.
+#[utoipa::path(get, path = "/api/v1/jobs/{id}/surfaces/{file}", tag = "results",
+    params(("id" = String, Path), ("file" = String, Path, description = "<surface name>.png")),
+    responses((status = 200, content_type = "image/png", body = Vec<u8>),
+        (status = 404, body = Problem, content_type = "application/problem+json"),
+        (status = 409, body = Problem, content_type = "application/problem+json")))]
+pub async fn job_surface(
+    State(state): State<AppState>,
+    Path((id, file)): Path<(String, String)>,
+    headers: HeaderMap,
+) -> Result<Response, Problem> {
+    let Some(name) = file.strip_suffix(".png") else {
+        return Err(Problem::not_found(&format!(
+            "surface image {file} (ask for <name>.png)"
+        )));
+    };
+    let status = entry(&state, &id)?.status();
+    if !status.links.surfaces.contains_key(name) {
+        return Err(Problem::not_found(&format!("surface {name} in job {id}")));
+    }
+    finished(&state, &id)?;
+    let bytes = stored(&state, &id, &format!("surfaces/{name}.png")).await?;
+    Ok(png(bytes, &headers))
+}
+
+/// A PNG with a strong ETag (its hash) and immutable caching: the same document always gives
+/// the same bytes.
+fn png(bytes: Vec<u8>, headers: &HeaderMap) -> Response {
+    let digest = Sha256::digest(&bytes);
+    let etag = format!(
+        "\"{}\"",
+        digest[..16]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect::<String>()
+    );
+    let cache = (header::CACHE_CONTROL, "public, max-age=31536000, immutable");
+    let matches = headers
+        .get(header::IF_NONE_MATCH)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*"));
+    if matches {
+        return (
+            StatusCode::NOT_MODIFIED,
+            [(header::ETAG, etag), (cache.0, cache.1.to_string())],
+        )
+            .into_response();
+    }
+    (
+        [
+            (header::CONTENT_TYPE, "image/png".to_string()),
+            (header::ETAG, etag),
+            (cache.0, cache.1.to_string()),
+        ],
+        bytes,
+    )
+        .into_response()
+}
+
+/// Solve and answer at once: `image/png`, or the result JSON with `Accept: application/json`.
+/// The job is an ordinary job (same id for the same document), so its result stays available.
+#[utoipa::path(post, path = "/api/v1/render", tag = "jobs",
+    request_body(content = super::openapi::JobDocument, content_type = "application/json"),
+    responses(
+        (status = 200, description = "the image, or the result with Accept: application/json", content_type = "image/png", body = Vec<u8>),
+        (status = 400, body = Problem, content_type = "application/problem+json"),
+        (status = 413, body = Problem, content_type = "application/problem+json"),
+        (status = 415, body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "invalid document, or a solve this build does not support", body = Problem, content_type = "application/problem+json"),
+        (status = 500, description = "the solve failed", body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "would wait longer than sync_timeout, or the queue is full (Retry-After)", body = Problem, content_type = "application/problem+json"),
+    ))]
+pub async fn render_now(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    request: Request,
+) -> Result<Response, Problem> {
+    let (document, job) = read_document(&state, &headers, request.into_body()).await?;
+    let entry = match submit(&state, document, job).await {
+        Ok(Submitted::New(e) | Submitted::Existing(e)) => e,
+        Err(p) if p.status == 429 => {
+            let mut p = p;
+            p.status = 503;
+            p.title = "Service Unavailable".into();
+            return Err(p);
+        }
+        Err(p) => return Err(p),
+    };
+    let limit = state.config.sync_timeout;
+    let Some(status) = wait_final(&entry, limit).await else {
+        return Err(Problem::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!(
+                "the solve takes longer than sync_timeout ({limit:?}); it goes on as job {}",
+                entry.id
+            ),
+        )
+        .with_type("sync-timeout", "Too slow to answer at once")
+        .retry_after(limit.as_secs().max(1)));
+    };
+    match status.state {
+        JobState::Succeeded => {}
+        JobState::Failed => {
+            return Err(status
+                .error
+                .map(|e| e.to_problem())
+                .unwrap_or_else(|| Problem::new(StatusCode::INTERNAL_SERVER_ERROR, "failed")))
+        }
+        _ => return Err(Problem::new(StatusCode::CONFLICT, "the job was cancelled")),
+    }
+    let wants_json = headers
+        .get(header::ACCEPT)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|a| a.contains("application/json"));
+    let location = (header::CONTENT_LOCATION, status.links.this.clone());
+    if wants_json {
+        let bytes = stored(&state, &entry.id, "result.json").await?;
+        Ok((
+            [
+                (header::CONTENT_TYPE, "application/json".to_string()),
+                location,
+            ],
+            bytes,
+        )
+            .into_response())
+    } else {
+        let bytes = stored(&state, &entry.id, "image.png").await?;
+        let mut res = png(bytes, &HeaderMap::new());
+        res.headers_mut().insert(
+            location.0,
+            HeaderValue::from_str(&location.1).expect("ids are hex"),
+        );
+        Ok(res)
+    }
+}
+
+/// The job's final status, or `None` past `limit`.
+async fn wait_final(entry: &Entry, limit: std::time::Duration) -> Option<JobStatus> {
+    let mut rx = entry.subscribe();
+    let waited = tokio::time::timeout(limit, rx.wait_for(|s| s.state.is_final())).await;
+    match waited {
+        Ok(Ok(s)) => Some(s.clone()),
+        // The sender is gone: the job was forgotten; its last status says why.
+        Ok(Err(_)) => Some(entry.status()),
+        Err(_) => None,
+    }
+}
+
+/// This API as OpenAPI 3.
+#[utoipa::path(get, path = "/api/v1/openapi.json", tag = "operations", responses((status = 200, description = "OpenAPI 3 document")))]
+pub async fn openapi() -> Json<utoipa::openapi::OpenApi> {
+    Json(super::openapi::document())
+}
+
+/// Alive.
+#[utoipa::path(get, path = "/healthz", tag = "operations", responses((status = 200, description = "ok")))]
+pub async fn healthz() -> &'static str {
+    "ok\n"
+}
+
+/// Ready to take jobs (not shutting down, room in the queue).
+#[utoipa::path(get, path = "/readyz", tag = "operations",
+    responses((status = 200, description = "ready"), (status = 503, body = Problem, content_type = "application/problem+json")))]
+pub async fn readyz(State(state): State<AppState>) -> Result<&'static str, Problem> {
+    if state.queue.ready() && !state.shutdown.is_cancelled() {
+        Ok("ready\n")
+    } else {
+        Err(Problem::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "not taking jobs (queue full or shutting down)",
+        )
+        .retry_after(5))
+    }
+}
+
+/// Prometheus text exposition.
+#[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200, description = "Prometheus text", body = String, content_type = "text/plain")))]
+pub async fn metrics(State(state): State<AppState>) -> Response {
+    state.queue.update_gauges();
+    (
+        [(
+            header::CONTENT_TYPE,
+            "application/openmetrics-text; version=1.0.0; charset=utf-8",
+        )],
+        state.metrics.encode(),
+    )
+        .into_response()
+}
+
+/// The web page.
+#[utoipa::path(get, path = "/", tag = "operations", responses((status = 200, body = String, content_type = "text/html", description = "the web page")))]
+pub async fn index() -> Html<&'static str> {
+    Html(include_str!("../../static/index.html"))
+}
+
+async fn static_file(Path(file): Path<String>) -> Result<Response, Problem> {
+    let (body, mime) = match file.as_str() {
+        "app.js" => (
+            include_str!("../../static/app.js"),
+            "text/javascript; charset=utf-8",
+        ),
+        "style.css" => (
+            include_str!("../../static/style.css"),
+            "text/css; charset=utf-8",
+        ),
+        _ => return Err(Problem::not_found(&format!("static file {file}"))),
+    };
+    Ok((
+        [
+            (header::CONTENT_TYPE, mime),
+            (header::CACHE_CONTROL, "no-cache"),
+        ],
+        body,
+    )
+        .into_response())
+}
+
+/// The example scenes shipped in `scenes/`, embedded.
+pub const SCENES: [(&str, &str); 5] = [
+    (
+        "flatland-parallel",
+        include_str!("../../scenes/flatland-parallel.json"),
+    ),
+    (
+        "flatland-perpendicular",
+        include_str!("../../scenes/flatland-perpendicular.json"),
+    ),
+    (
+        "fredholm-degenerate",
+        include_str!("../../scenes/fredholm-degenerate.json"),
+    ),
+    ("plates-3d", include_str!("../../scenes/plates-3d.json")),
+    ("cornell-box", include_str!("../../scenes/cornell-box.json")),
+];
+
+async fn scene_file(Path(file): Path<String>) -> Result<Response, Problem> {
+    if file == "index.json" {
+        let names: Vec<&str> = SCENES.iter().map(|(n, _)| *n).collect();
+        return Ok(Json(names).into_response());
+    }
+    let name = file.strip_suffix(".json").unwrap_or(&file);
+    let (_, text) = SCENES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .ok_or_else(|| Problem::not_found(&format!("example scene {name}")))?;
+    Ok(([(header::CONTENT_TYPE, "application/json")], *text).into_response())
+}

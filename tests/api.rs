@@ -1,0 +1,593 @@
+//! Every route and every error case of `spec/api.md`, through the router (`oneshot`).
+
+mod common;
+
+use axum::body::{Body, Bytes};
+use axum::http::{header, HeaderMap, Request, StatusCode};
+use axum::Router;
+use common::*;
+use serde_json::{json, Value};
+use std::time::{Duration, Instant};
+use tower::ServiceExt;
+use wavrad::server::queue::JobState;
+use wavrad::server::{app, AppState};
+
+async fn call(app: &Router, req: Request<Body>) -> (StatusCode, HeaderMap, Bytes) {
+    let res = app.clone().oneshot(req).await.unwrap();
+    let (parts, body) = res.into_parts();
+    let bytes = axum::body::to_bytes(body, usize::MAX).await.unwrap();
+    (parts.status, parts.headers, bytes)
+}
+
+fn post(uri: &str, body: impl Into<Body>) -> Request<Body> {
+    Request::post(uri)
+        .header(header::CONTENT_TYPE, "application/json")
+        .body(body.into())
+        .unwrap()
+}
+
+fn get(uri: &str) -> Request<Body> {
+    Request::get(uri).body(Body::empty()).unwrap()
+}
+
+fn json(bytes: &Bytes) -> Value {
+    serde_json::from_slice(bytes)
+        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(bytes)))
+}
+
+/// Asserts a problem document with this status.
+fn problem(status: StatusCode, headers: &HeaderMap, body: &Bytes, expected: StatusCode) -> Value {
+    assert_eq!(status, expected, "{}", String::from_utf8_lossy(body));
+    assert_eq!(headers[header::CONTENT_TYPE], "application/problem+json");
+    let p = json(body);
+    assert_eq!(p["status"], expected.as_u16());
+    for key in ["type", "title", "detail"] {
+        assert!(p[key].is_string(), "{key} missing in {p}");
+    }
+    p
+}
+
+fn setup(f: impl FnOnce(&mut wavrad::server::Config)) -> (tempfile::TempDir, AppState, Router) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut c = config(dir.path());
+    f(&mut c);
+    let s = state(c);
+    let router = app(s.clone());
+    (dir, s, router)
+}
+
+async fn submit(router: &Router, doc: &Value) -> (StatusCode, HeaderMap, Value) {
+    let (st, h, b) = call(router, post("/api/v1/jobs", doc.to_string())).await;
+    (st, h, json(&b))
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_job_runs_and_yields_its_result_and_images() {
+    let (_dir, state, router) = setup(|_| {});
+    let doc = scene("flatland-parallel");
+    let (st, h, status) = submit(&router, &doc).await;
+    assert_eq!(st, StatusCode::ACCEPTED);
+    let id = status["id"].as_str().unwrap().to_string();
+    assert_eq!(h[header::LOCATION], format!("/api/v1/jobs/{id}"));
+    assert!(["queued", "running"].contains(&status["state"].as_str().unwrap()));
+    wait_until(&state, &id, |s| s.is_final()).await;
+
+    let (st, _, b) = call(&router, get(&format!("/api/v1/jobs/{id}"))).await;
+    assert_eq!(st, StatusCode::OK);
+    let status = json(&b);
+    assert_eq!(status["state"], "succeeded");
+    assert_eq!(status["progress"]["phase"], "done");
+    assert_eq!(status["progress"]["fraction"], 1.0);
+
+    let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}/result"))).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(h[header::CONTENT_TYPE], "application/json");
+    let result = json(&b);
+    assert_eq!(result["kind"], "flatland");
+    assert_eq!(result["surfaces"].as_array().unwrap().len(), 2);
+    let direct = wavrad::job::run(
+        &wavrad::scene::parse_value(&doc, &wavrad::scene::Limits::default()).unwrap(),
+        &wavrad::progress::Silent,
+    )
+    .unwrap();
+    assert_eq!(
+        result["surfaces"][1]["mean"][0].as_f64().unwrap(),
+        direct.result.surfaces[1].mean[0]
+    );
+
+    for path in [
+        "image.png",
+        "sparsity.png",
+        "coefficients.png",
+        "surfaces/top.png",
+        "surfaces/bottom.png",
+    ] {
+        let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}/{path}"))).await;
+        assert_eq!(st, StatusCode::OK, "{path}");
+        assert_eq!(h[header::CONTENT_TYPE], "image/png");
+        assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n");
+        assert!(h[header::CACHE_CONTROL]
+            .to_str()
+            .unwrap()
+            .contains("immutable"));
+        let etag = h[header::ETAG].clone();
+        let again = Request::get(format!("/api/v1/jobs/{id}/{path}"))
+            .header(header::IF_NONE_MATCH, etag)
+            .body(Body::empty())
+            .unwrap();
+        let (st, _, b) = call(&router, again).await;
+        assert_eq!(st, StatusCode::NOT_MODIFIED);
+        assert!(b.is_empty());
+    }
+    let img = image::load_from_memory(
+        &call(&router, get(&format!("/api/v1/jobs/{id}/image.png")))
+            .await
+            .2,
+    )
+    .unwrap();
+    assert_eq!((img.width(), img.height()), (512, 512));
+
+    // The same document again: the same job, finished at once.
+    let (st, h, again) = submit(&router, &doc).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(again["id"], id);
+    assert_eq!(again["state"], "succeeded");
+    assert_eq!(h[header::LOCATION], format!("/api/v1/jobs/{id}"));
+
+    let (st, _, b) = call(&router, get("/api/v1/jobs")).await;
+    assert_eq!(st, StatusCode::OK);
+    let list = json(&b);
+    assert_eq!(list.as_array().unwrap().len(), 1);
+    assert_eq!(list[0]["id"], id);
+
+    let (st, _, _) = call(
+        &router,
+        Request::delete(format!("/api/v1/jobs/{id}"))
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, StatusCode::NO_CONTENT);
+    let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}"))).await;
+    problem(st, &h, &b, StatusCode::NOT_FOUND);
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn jobs_are_listed_newest_first() {
+    let (_dir, state, router) = setup(|_| {});
+    let mut ids = Vec::new();
+    for name in ["first", "second", "third"] {
+        let (_, _, s) = submit(&router, &named(name)).await;
+        ids.push(s["id"].as_str().unwrap().to_string());
+        tokio::time::sleep(Duration::from_millis(3)).await; // distinct creation milliseconds
+    }
+    for id in &ids {
+        wait_until(&state, id, |s| s.is_final()).await;
+    }
+    let list = json(&call(&router, get("/api/v1/jobs?limit=2")).await.2);
+    let got: Vec<&str> = list
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["id"].as_str().unwrap())
+        .collect();
+    assert_eq!(got, vec![ids[2].as_str(), ids[1].as_str()]);
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn bad_bodies_get_their_own_status_as_problem_documents() {
+    let (_dir, _state, router) = setup(|c| c.max_body_bytes = 4096);
+    for uri in ["/api/v1/jobs", "/api/v1/render"] {
+        // 400: not JSON, not UTF-8.
+        let (st, h, b) = call(&router, post(uri, "{ not json")).await;
+        problem(st, &h, &b, StatusCode::BAD_REQUEST);
+        let (st, h, b) = call(&router, post(uri, vec![b'"', 0xff, 0xfe, b'"'])).await;
+        problem(st, &h, &b, StatusCode::BAD_REQUEST);
+        // 415: wrong or missing content type.
+        let req = Request::post(uri)
+            .header(header::CONTENT_TYPE, "text/plain")
+            .body(Body::from("{}"))
+            .unwrap();
+        let (st, h, b) = call(&router, req).await;
+        problem(st, &h, &b, StatusCode::UNSUPPORTED_MEDIA_TYPE);
+        let req = Request::post(uri).body(Body::from("{}")).unwrap();
+        let (st, h, b) = call(&router, req).await;
+        problem(st, &h, &b, StatusCode::UNSUPPORTED_MEDIA_TYPE);
+        // 413: larger than max_body_bytes, with and without a Content-Length.
+        let big = json!({"scene": {"kind": "fredholm", "name": "x".repeat(5000)}}).to_string();
+        let (st, h, b) = call(&router, post(uri, big.clone())).await;
+        problem(st, &h, &b, StatusCode::PAYLOAD_TOO_LARGE);
+        let chunks = futures_util::stream::iter(
+            big.into_bytes()
+                .chunks(1000)
+                .map(|c| Ok::<_, std::io::Error>(c.to_vec()))
+                .collect::<Vec<_>>(),
+        );
+        let (st, h, b) = call(&router, post(uri, Body::from_stream(chunks))).await;
+        problem(st, &h, &b, StatusCode::PAYLOAD_TOO_LARGE);
+        // 422: every path at fault.
+        let mut doc = scene("flatland-parallel");
+        doc["scene"]["surfaces"][1]["reflectance"] = json!(1.5);
+        doc["solver"]["order"] = json!(-1);
+        doc["solver"]["typo"] = json!(true);
+        let (st, h, b) = call(&router, post(uri, doc.to_string())).await;
+        let p = problem(st, &h, &b, StatusCode::UNPROCESSABLE_ENTITY);
+        let paths: Vec<&str> = p["errors"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e["path"].as_str().unwrap())
+            .collect();
+        for expected in [
+            "/scene/surfaces/1/reflectance",
+            "/solver/order",
+            "/solver/typo",
+        ] {
+            assert!(paths.contains(&expected), "{expected} not in {paths:?}");
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_document_larger_than_the_basis_limit_is_refused_before_any_work() {
+    let (_dir, state, router) = setup(|c| c.max_basis_functions = 100);
+    let mut doc = scene("flatland-parallel");
+    doc["solver"]["resolution"] = json!(64); // 2 surfaces × 64 cells × 2 = 256 unknowns
+    let (st, h, b) = call(&router, post("/api/v1/jobs", doc.to_string())).await;
+    let p = problem(st, &h, &b, StatusCode::UNPROCESSABLE_ENTITY);
+    assert!(!p["errors"].as_array().unwrap().is_empty());
+    assert!(state.queue.list(10).is_empty(), "no job was created");
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn unknown_jobs_and_routes_are_404() {
+    let (_dir, _state, router) = setup(|_| {});
+    let id = "0123456789abcdef0123456789abcdef";
+    for path in [
+        "",
+        "/events",
+        "/result",
+        "/image.png",
+        "/sparsity.png",
+        "/coefficients.png",
+        "/surfaces/top.png",
+    ] {
+        let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}{path}"))).await;
+        problem(st, &h, &b, StatusCode::NOT_FOUND);
+    }
+    let (st, h, b) = call(
+        &router,
+        Request::delete(format!("/api/v1/jobs/{id}"))
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    problem(st, &h, &b, StatusCode::NOT_FOUND);
+    let (st, h, b) = call(&router, get("/no/such/route")).await;
+    problem(st, &h, &b, StatusCode::NOT_FOUND);
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn artifacts_before_success_are_409_and_a_running_job_cancels_within_a_second() {
+    let (_dir, state, router) = setup(|_| {});
+    let (st, _, s) = submit(&router, &named("slow one")).await;
+    assert_eq!(st, StatusCode::ACCEPTED);
+    let id = s["id"].as_str().unwrap().to_string();
+    let running = wait_until(&state, &id, |s| s == JobState::Running).await;
+    assert_eq!(running.state, JobState::Running);
+    for path in [
+        "/result",
+        "/image.png",
+        "/sparsity.png",
+        "/coefficients.png",
+        "/surfaces/top.png",
+    ] {
+        let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}{path}"))).await;
+        problem(st, &h, &b, StatusCode::CONFLICT);
+    }
+    let (_, _, b) = call(
+        &router,
+        get(&format!("/api/v1/jobs/{id}/surfaces/nope.png")),
+    )
+    .await;
+    assert_eq!(json(&b)["status"], 404);
+    let (_, _, b) = call(&router, get(&format!("/api/v1/jobs/{id}/other.png"))).await;
+    assert_eq!(json(&b)["status"], 404);
+
+    let entry = state.queue.get(&id).unwrap();
+    let t = Instant::now();
+    let (st, _, _) = call(
+        &router,
+        Request::delete(format!("/api/v1/jobs/{id}"))
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, StatusCode::NO_CONTENT);
+    // The solver thread lets go of the job when its solve has stopped.
+    while std::sync::Arc::strong_count(&entry) > 1 {
+        assert!(
+            t.elapsed() < Duration::from_secs(1),
+            "the solve did not stop within a second"
+        );
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    assert_eq!(entry.status().state, JobState::Cancelled);
+    let (st, _, _) = call(&router, get(&format!("/api/v1/jobs/{id}"))).await;
+    assert_eq!(st, StatusCode::NOT_FOUND);
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_full_queue_answers_429_with_retry_after_and_readyz_503() {
+    let (_dir, state, router) = setup(|c| {
+        c.workers = 1;
+        c.queue_capacity = 1;
+    });
+    let (_, _, s) = submit(&router, &named("slow running")).await;
+    wait_until(&state, s["id"].as_str().unwrap(), |s| {
+        s == JobState::Running
+    })
+    .await;
+    let (st, _, _) = submit(&router, &named("slow waiting")).await;
+    assert_eq!(st, StatusCode::ACCEPTED);
+    let (st, h, b) = call(
+        &router,
+        post("/api/v1/jobs", named("slow refused").to_string()),
+    )
+    .await;
+    problem(st, &h, &b, StatusCode::TOO_MANY_REQUESTS);
+    assert!(
+        h[header::RETRY_AFTER]
+            .to_str()
+            .unwrap()
+            .parse::<u64>()
+            .unwrap()
+            > 0
+    );
+    let (st, h, b) = call(
+        &router,
+        post("/api/v1/render", named("slow refused").to_string()),
+    )
+    .await;
+    problem(st, &h, &b, StatusCode::SERVICE_UNAVAILABLE);
+    assert!(h.contains_key(header::RETRY_AFTER));
+    let (st, _, _) = call(&router, get("/readyz")).await;
+    assert_eq!(st, StatusCode::SERVICE_UNAVAILABLE);
+    let (st, _, _) = call(&router, get("/healthz")).await;
+    assert_eq!(st, StatusCode::OK);
+    for s in state.queue.list(10) {
+        state.queue.delete(&s.id).unwrap();
+    }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_panicking_solve_fails_its_job_alone() {
+    let (_dir, state, router) = setup(|_| {});
+    let (_, _, s) = submit(&router, &named("panic please")).await;
+    let failed = wait_until(&state, s["id"].as_str().unwrap(), |s| s.is_final()).await;
+    assert_eq!(failed.state, JobState::Failed);
+    let error = failed.error.unwrap();
+    assert!(error.detail.contains("panicked"), "{}", error.detail);
+    let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{}/result", failed.id))).await;
+    problem(st, &h, &b, StatusCode::CONFLICT);
+    // The pool and the server go on.
+    let (_, _, s) = submit(&router, &named("after the panic")).await;
+    let ok = wait_until(&state, s["id"].as_str().unwrap(), |s| s.is_final()).await;
+    assert_eq!(ok.state, JobState::Succeeded);
+    let (st, h, b) = call(
+        &router,
+        post("/api/v1/render", named("panic sync").to_string()),
+    )
+    .await;
+    let p = problem(st, &h, &b, StatusCode::INTERNAL_SERVER_ERROR);
+    assert!(p["detail"].as_str().unwrap().contains("panicked"));
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_solve_past_job_timeout_fails() {
+    let (_dir, state, router) = setup(|c| c.job_timeout = Duration::from_millis(300));
+    let (_, _, s) = submit(&router, &named("slow timeout")).await;
+    let failed = wait_until(&state, s["id"].as_str().unwrap(), |s| s.is_final()).await;
+    assert_eq!(failed.state, JobState::Failed);
+    assert_eq!(failed.error.unwrap().kind, "/problems/timeout");
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn unsupported_solves_fail_with_a_problem() {
+    let (_dir, state, router) = setup(|_| {});
+    let mut doc = scene("flatland-parallel");
+    doc["solver"]["method"] = json!("hierarchical");
+    let (_, _, s) = submit(&router, &doc).await;
+    let done = wait_until(&state, s["id"].as_str().unwrap(), |s| s.is_final()).await;
+    // Either this build solves it or it says why not; the server keeps serving.
+    if done.state == JobState::Failed {
+        assert!(!done.error.unwrap().detail.is_empty());
+    } else {
+        assert_eq!(done.state, JobState::Succeeded);
+    }
+    assert_eq!(call(&router, get("/healthz")).await.0, StatusCode::OK);
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn events_stream_the_status_until_the_job_ends() {
+    let (_dir, state, router) = setup(|_| {});
+    let (_, _, s) = submit(&router, &named("events")).await;
+    let id = s["id"].as_str().unwrap();
+    let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}/events"))).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(h[header::CONTENT_TYPE], "text/event-stream");
+    let text = String::from_utf8(b.to_vec()).unwrap();
+    let statuses: Vec<Value> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("data: "))
+        .map(|d| serde_json::from_str(d).unwrap())
+        .collect();
+    assert!(text.contains("event: status"));
+    assert_eq!(statuses.last().unwrap()["state"], "succeeded");
+    assert!(statuses.iter().all(|s| s["id"] == id));
+    // A finished job: one event, then the stream closes.
+    let (_, _, b) = call(&router, get(&format!("/api/v1/jobs/{id}/events"))).await;
+    assert_eq!(String::from_utf8_lossy(&b).matches("data: ").count(), 1);
+    assert_eq!(
+        state.queue.get(id).unwrap().status().state,
+        JobState::Succeeded
+    );
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn render_answers_png_or_json_at_once() {
+    let (_dir, _state, router) = setup(|_| {});
+    let doc = scene("fredholm-degenerate");
+    let (st, h, png) = call(&router, post("/api/v1/render", doc.to_string())).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(h[header::CONTENT_TYPE], "image/png");
+    assert_eq!(&png[..4], b"\x89PNG");
+    let req = Request::post("/api/v1/render")
+        .header(header::CONTENT_TYPE, "application/json")
+        .header(header::ACCEPT, "application/json")
+        .body(Body::from(doc.to_string()))
+        .unwrap();
+    let (st, h, b) = call(&router, req).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(h[header::CONTENT_TYPE], "application/json");
+    assert_eq!(json(&b)["kind"], "fredholm");
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn render_answers_503_past_the_sync_timeout() {
+    let (_dir, state, router) = setup(|c| c.sync_timeout = Duration::from_millis(200));
+    let (st, h, b) = call(
+        &router,
+        post("/api/v1/render", named("slow sync").to_string()),
+    )
+    .await;
+    problem(st, &h, &b, StatusCode::SERVICE_UNAVAILABLE);
+    assert!(h.contains_key(header::RETRY_AFTER));
+    for s in state.queue.list(10) {
+        state.queue.delete(&s.id).unwrap();
+    }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn load_is_shed_beyond_the_concurrency_limit() {
+    let (_dir, state, router) = setup(|c| c.max_concurrent_requests = 1);
+    let r = router.clone();
+    let busy = tokio::spawn(async move {
+        call(&r, post("/api/v1/render", named("slow busy").to_string())).await
+    });
+    let id = wavrad::server::queue::job_id(&named("slow busy"));
+    loop {
+        if state.queue.get(&id).is_some() {
+            break;
+        }
+        tokio::task::yield_now().await;
+    }
+    let (st, h, b) = call(&router, get("/healthz")).await;
+    problem(st, &h, &b, StatusCode::SERVICE_UNAVAILABLE);
+    assert!(h.contains_key(header::RETRY_AFTER));
+    state.queue.delete(&id).unwrap();
+    let _ = busy.await;
+    assert_eq!(call(&router, get("/healthz")).await.0, StatusCode::OK);
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn finished_results_expire_after_result_ttl() {
+    let (_dir, state, router) = setup(|c| c.result_ttl = Duration::from_millis(300));
+    let (_, _, s) = submit(&router, &named("short-lived")).await;
+    let id = s["id"].as_str().unwrap().to_string();
+    wait_until(&state, &id, |s| s.is_final()).await;
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while call(&router, get(&format!("/api/v1/jobs/{id}"))).await.0 == StatusCode::OK {
+        assert!(Instant::now() < deadline, "not expired");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let (st, _, _) = call(&router, get(&format!("/api/v1/jobs/{id}/result"))).await;
+    assert_eq!(st, StatusCode::NOT_FOUND);
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn operations_routes() {
+    let (_dir, state, router) = setup(|_| {});
+    let (st, _, b) = call(&router, get("/healthz")).await;
+    assert_eq!((st, &b[..]), (StatusCode::OK, &b"ok\n"[..]));
+    assert_eq!(call(&router, get("/readyz")).await.0, StatusCode::OK);
+
+    let (_, _, s) = submit(&router, &named("metrics")).await;
+    wait_until(&state, s["id"].as_str().unwrap(), |s| s.is_final()).await;
+    let (st, _, b) = call(&router, get("/metrics")).await;
+    assert_eq!(st, StatusCode::OK);
+    let text = String::from_utf8(b.to_vec()).unwrap();
+    for needle in [
+        "wavrad_jobs{state=\"succeeded\"} 1",
+        "wavrad_queue_depth 0",
+        "wavrad_solve_seconds_count 1",
+        "wavrad_http_requests_total{method=\"POST\",route=\"/api/v1/jobs\",status=\"202\"} 1",
+    ] {
+        assert!(text.contains(needle), "{needle} not in\n{text}");
+    }
+
+    let (st, _, b) = call(&router, get("/api/v1/openapi.json")).await;
+    assert_eq!(st, StatusCode::OK);
+    let api = json(&b);
+    assert!(api["openapi"].as_str().unwrap().starts_with("3."));
+    for path in [
+        "/api/v1/jobs",
+        "/api/v1/jobs/{id}",
+        "/api/v1/jobs/{id}/events",
+        "/api/v1/jobs/{id}/result",
+        "/api/v1/jobs/{id}/{artifact}",
+        "/api/v1/jobs/{id}/surfaces/{file}",
+        "/api/v1/render",
+        "/api/v1/openapi.json",
+        "/healthz",
+        "/readyz",
+        "/metrics",
+        "/",
+    ] {
+        assert!(
+            api["paths"][path].is_object(),
+            "{path} missing from the OpenAPI document"
+        );
+    }
+    assert!(api["paths"]["/api/v1/jobs"]["post"]["responses"]["422"].is_object());
+
+    let (st, h, b) = call(&router, get("/")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert!(h[header::CONTENT_TYPE]
+        .to_str()
+        .unwrap()
+        .starts_with("text/html"));
+    let html = String::from_utf8(b.to_vec()).unwrap();
+    for id in [
+        "scene-select",
+        "doc",
+        "method",
+        "basis",
+        "order",
+        "resolution",
+        "keep-kind",
+        "submit",
+        "progress",
+        "image",
+        "sparsity",
+        "coefficients",
+        "surfaces-body",
+        "metrics",
+        "errors",
+    ] {
+        assert!(html.contains(&format!("id=\"{id}\"")), "#{id} missing");
+    }
+    assert_eq!(call(&router, get("/static/app.js")).await.0, StatusCode::OK);
+    assert_eq!(
+        call(&router, get("/static/style.css")).await.0,
+        StatusCode::OK
+    );
+    let names = json(&call(&router, get("/scenes/index.json")).await.2);
+    assert!(names
+        .as_array()
+        .unwrap()
+        .contains(&json!("flatland-parallel")));
+    let (st, _, b) = call(&router, get("/scenes/flatland-parallel.json")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(json(&b), scene("flatland-parallel"));
+}
