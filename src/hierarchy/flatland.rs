@@ -515,6 +515,38 @@ impl<'a> Hierarchy<'a> {
         out
     }
 
+    /// The links as a picture of the operator: on the grid of finest cells of all surfaces
+    /// (receivers down, sources across), each link fills its block with the mean kernel value
+    /// it carries, |T_00| / √(|r||s|), so the picture shows the interaction blocks of the
+    /// hierarchy (coarse far away, fine near corners and shadows).
+    fn picture(&self, resolution: usize, max_side: usize) -> crate::compress::MagnitudePicture {
+        let n = self.segments.len() * resolution;
+        let block = n.div_ceil(max_side).max(1);
+        let side = n.div_ceil(block);
+        let mut values = vec![0.0f64; side * side];
+        let cells = |e: &Element| {
+            let lo = e.surface * resolution + (e.range[0] * resolution as f64).round() as usize;
+            let hi = e.surface * resolution + (e.range[1] * resolution as f64).round() as usize;
+            (lo / block)..hi.div_ceil(block)
+        };
+        for l in &self.links {
+            let (er, es) = (&self.elements[l.r], &self.elements[l.s]);
+            let v = l.t[0].abs() / (self.length(l.r) * self.length(l.s)).sqrt();
+            for i in cells(er) {
+                for j in cells(es) {
+                    let c = &mut values[i * side + j];
+                    *c = c.max(v);
+                }
+            }
+        }
+        crate::compress::MagnitudePicture {
+            side,
+            values,
+            block,
+            cut: 0.0,
+        }
+    }
+
     /// A field per surface from the leaves' coefficients chosen by `pick`.
     fn fields(&self, resolution: usize, pick: impl Fn(&Element) -> &Vec<Rgb>) -> Vec<Field> {
         (0..self.segments.len())
@@ -595,6 +627,7 @@ pub fn solve(
         refinements: h.refinements,
         rays: 0,
     };
+    let picture = h.picture(resolution, 512);
     let fields = h.fields(resolution, |e| &e.b);
     let emission = h.fields(resolution, |e| &e.e);
     let irradiance = h.fields(resolution, |e| &e.h_total);
@@ -608,7 +641,7 @@ pub fn solve(
         kept_entries: mags.iter().filter(|v| **v > 0.0).count(),
         cut: 0.0,
         magnitudes,
-        picture: None,
+        picture: Some(picture),
         solved: Solved {
             b: Vec::new(),
             iterations: history.len(),
