@@ -22,6 +22,15 @@ pub fn flatland(x: V2, nx: V2, y: V2, ny: V2) -> f64 {
     cx * cy / (2.0 * r2 * r2.sqrt())
 }
 
+/// Eq. (4) for points known to face each other (both cosines positive): no branch, so that
+/// the fill's inner loop vectorises.
+#[inline(always)]
+pub fn flatland_facing(x: V2, nx: V2, y: V2, ny: V2) -> f64 {
+    let r = y - x;
+    let r2 = r.dot(r);
+    r.dot(nx) * -r.dot(ny) / (2.0 * r2 * r2.sqrt())
+}
+
 /// Eq. (3) without V: cosθx cosθy / (π r²), with x, y and unit normals as `[f64; 3]`.
 #[inline(always)]
 pub fn three_d(x: [f64; 3], nx: [f64; 3], y: [f64; 3], ny: [f64; 3]) -> f64 {

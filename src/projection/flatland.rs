@@ -365,25 +365,77 @@ impl FastTables {
         let pb = &self.phi[t][j][b * q * k..(b + 1) * q * k];
         let (ni, nj) = (geo.lines[i].n, geo.lines[j].n);
         let scale = (geo.lines[i].len * geo.lines[j].len).sqrt() / self.h;
-        let mut tmp = [0.0; MAX_K];
-        for (alpha, &x) in xs.iter().enumerate() {
-            tmp[..k].fill(0.0);
-            for (beta, &y) in ys.iter().enumerate() {
-                let kv = kernel::flatland(x, ni, y, nj);
-                let row = &pb[beta * k..beta * k + k];
-                for r in 0..k {
-                    tmp[r] += kv * row[r];
-                }
-            }
-            for p in 0..k {
-                let f = pa[alpha * k + p] * scale;
-                for r in 0..k {
-                    out[p * k + r] += f * tmp[r];
-                }
-            }
+        // k known at compile time for the common orders, so the inner loops unroll
+        match k {
+            1 => contract::<1>(xs, ys, pa, pb, ni, nj, scale, out),
+            2 => contract::<2>(xs, ys, pa, pb, ni, nj, scale, out),
+            3 => contract::<3>(xs, ys, pa, pb, ni, nj, scale, out),
+            4 => contract::<4>(xs, ys, pa, pb, ni, nj, scale, out),
+            _ => contract_any(k, xs, ys, pa, pb, ni, nj, scale, out),
         }
         debug_assert_eq!(self.cells * q, self.points[t][i].len());
         (q * q) as u64
+    }
+}
+
+/// out[p][r] += scale Σ_α Σ_β pa[α][p] K(x_α, y_β) pb[β][r], for cells wholly in front of
+/// each other (so the one-sided test of eq. (4) is not needed).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn contract<const K: usize>(
+    xs: &[V2],
+    ys: &[V2],
+    pa: &[f64],
+    pb: &[f64],
+    ni: V2,
+    nj: V2,
+    scale: f64,
+    out: &mut [f64],
+) {
+    for (alpha, &x) in xs.iter().enumerate() {
+        let mut tmp = [0.0; K];
+        for (beta, &y) in ys.iter().enumerate() {
+            let kv = kernel::flatland_facing(x, ni, y, nj);
+            for r in 0..K {
+                tmp[r] += kv * pb[beta * K + r];
+            }
+        }
+        for p in 0..K {
+            let f = pa[alpha * K + p] * scale;
+            for r in 0..K {
+                out[p * K + r] += f * tmp[r];
+            }
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn contract_any(
+    k: usize,
+    xs: &[V2],
+    ys: &[V2],
+    pa: &[f64],
+    pb: &[f64],
+    ni: V2,
+    nj: V2,
+    scale: f64,
+    out: &mut [f64],
+) {
+    let mut tmp = [0.0; MAX_K];
+    for (alpha, &x) in xs.iter().enumerate() {
+        tmp[..k].fill(0.0);
+        for (beta, &y) in ys.iter().enumerate() {
+            let kv = kernel::flatland_facing(x, ni, y, nj);
+            for r in 0..k {
+                tmp[r] += kv * pb[beta * k + r];
+            }
+        }
+        for p in 0..k {
+            let f = pa[alpha * k + p] * scale;
+            for r in 0..k {
+                out[p * k + r] += f * tmp[r];
+            }
+        }
     }
 }
 
