@@ -189,15 +189,27 @@ pub fn solve_job(
                 tolerance: job.solver.tolerance,
                 max_iterations: job.solver.max_iterations,
             };
-            crate::hierarchy::flatland::solve(
+            let quadrature = job.solver.quadrature.max(order + 2);
+            let mut sol = crate::hierarchy::flatland::solve(
                 segments,
                 order,
                 resolution,
-                job.solver.quadrature.max(order + 2),
+                quadrature,
                 job.solver.epsilon,
                 settings,
                 progress,
-            )
+            )?;
+            let t = Instant::now();
+            let disc = Discretization {
+                order,
+                cells: resolution,
+                quadrature,
+            };
+            let (err, left_out) = kernel_error_1d(job, disc, &sol, progress)?;
+            sol.kernel_error = err;
+            sol.left_out = left_out;
+            sol.timings.insert("metrics".into(), ms(t));
+            Ok(sol)
         }
         (SceneKind::ThreeD(_), _) | (_, Method::Hierarchical) => {
             Err(JobError::Unsupported(format!(

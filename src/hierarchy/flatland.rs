@@ -628,6 +628,13 @@ pub fn solve(
         rays: 0,
     };
     let picture = h.picture(resolution, 512);
+    // Σ‖T‖² per pair of surfaces: each link is the orthogonal projection of K on its block
+    // r × s, so eq. (5) follows by Parseval as for the projection method
+    let mut kept_squares = vec![0.0; roots * roots];
+    for l in &h.links {
+        let (sr, ss) = (h.elements[l.r].surface, h.elements[l.s].surface);
+        kept_squares[sr * roots + ss] += l.t.iter().map(|v| v * v).sum::<f64>();
+    }
     let fields = h.fields(resolution, |e| &e.b);
     let emission = h.fields(resolution, |e| &e.e);
     let irradiance = h.fields(resolution, |e| &e.h_total);
@@ -653,7 +660,7 @@ pub fn solve(
         left_out: Vec::new(),
         hierarchy: Some(stats),
         timings,
-        kept_squares: Vec::new(),
+        kept_squares,
         kernel_evaluations: evaluations,
     })
 }
