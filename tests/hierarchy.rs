@@ -1,28 +1,13 @@
 //! Hierarchical wavelet radiosity in flatland: exact answers and the growth of the links.
 
+mod support;
+
 use serde_json::{json, Value};
-use wavrad::job::{self, Outcome};
-use wavrad::progress::Silent;
-use wavrad::scene::{parse_value, Limits};
-
-fn run(doc: Value) -> Outcome {
-    job::run(
-        &parse_value(&doc, &Limits::default()).unwrap_or_else(|e| panic!("{e}")),
-        &Silent,
-    )
-    .unwrap()
-}
-
-fn scene_file(name: &str) -> Value {
-    let path = format!("{}/scenes/{name}.json", env!("CARGO_MANIFEST_DIR"));
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
+use support::{relative_l2, run, scene_file};
+use wavrad::job::Outcome;
 
 fn with_solver(doc: &Value, solver: Value) -> Value {
-    let mut d = doc.clone();
-    d["solver"] = solver;
-    d["output"] = json!({"grid": 16});
-    d
+    support::with_solver(doc, solver, json!({"grid": 16}))
 }
 
 fn room(with_box: bool) -> Value {
@@ -74,16 +59,7 @@ fn furnace_for_every_order() {
 }
 
 fn cell_means(o: &Outcome) -> Vec<f64> {
-    o.result
-        .surfaces
-        .iter()
-        .flat_map(|s| s.cells.iter().map(|c| c[1]))
-        .collect()
-}
-
-fn relative_l2(a: &[f64], b: &[f64]) -> f64 {
-    let d: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
-    (d / b.iter().map(|y| y * y).sum::<f64>()).sqrt()
+    support::cell_means(o, 1)
 }
 
 /// As ε shrinks, the hierarchical solution approaches the converged projection solution. In a

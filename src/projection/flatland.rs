@@ -254,6 +254,8 @@ struct FastTables {
 
 /// Largest rule on the fast path; closer pairs (needing more points) take the careful path.
 const FAST_MAX_Q: usize = 12;
+/// Largest k = m + 1 on the fast path; higher orders take the careful path.
+const FAST_MAX_K: usize = 8;
 
 impl FastTables {
     fn new(geo: &Geometry, disc: Discretization) -> FastTables {
@@ -329,7 +331,7 @@ impl FastTables {
         j: usize,
         b: usize,
     ) -> Option<usize> {
-        if !pair.occluders.is_empty() {
+        if !pair.occluders.is_empty() || self.k > FAST_MAX_K {
             return None;
         }
         let (fi, fj) = (pair.front_i?, pair.front_j?);
@@ -371,7 +373,11 @@ impl FastTables {
             2 => contract::<2>(xs, ys, pa, pb, ni, nj, scale, out),
             3 => contract::<3>(xs, ys, pa, pb, ni, nj, scale, out),
             4 => contract::<4>(xs, ys, pa, pb, ni, nj, scale, out),
-            _ => contract_any(k, xs, ys, pa, pb, ni, nj, scale, out),
+            5 => contract::<5>(xs, ys, pa, pb, ni, nj, scale, out),
+            6 => contract::<6>(xs, ys, pa, pb, ni, nj, scale, out),
+            7 => contract::<7>(xs, ys, pa, pb, ni, nj, scale, out),
+            8 => contract::<8>(xs, ys, pa, pb, ni, nj, scale, out),
+            _ => unreachable!("the fast path takes k ≤ {FAST_MAX_K}"),
         }
         debug_assert_eq!(self.cells * q, self.points[t][i].len());
         (q * q) as u64
@@ -404,36 +410,6 @@ fn contract<const K: usize>(
             let f = pa[alpha * K + p] * scale;
             for r in 0..K {
                 out[p * K + r] += f * tmp[r];
-            }
-        }
-    }
-}
-
-#[allow(clippy::too_many_arguments)]
-fn contract_any(
-    k: usize,
-    xs: &[V2],
-    ys: &[V2],
-    pa: &[f64],
-    pb: &[f64],
-    ni: V2,
-    nj: V2,
-    scale: f64,
-    out: &mut [f64],
-) {
-    let mut tmp = [0.0; MAX_K];
-    for (alpha, &x) in xs.iter().enumerate() {
-        tmp[..k].fill(0.0);
-        for (beta, &y) in ys.iter().enumerate() {
-            let kv = kernel::flatland_facing(x, ni, y, nj);
-            for r in 0..k {
-                tmp[r] += kv * pb[beta * k + r];
-            }
-        }
-        for p in 0..k {
-            let f = pa[alpha * k + p] * scale;
-            for r in 0..k {
-                out[p * k + r] += f * tmp[r];
             }
         }
     }

@@ -1,0 +1,43 @@
+//! Helpers shared by the numerical tests: documents, solves and error measures.
+#![allow(dead_code)]
+
+use serde_json::Value;
+use wavrad::job::{self, Outcome};
+use wavrad::progress::Silent;
+use wavrad::scene::{parse_value, Job, Limits};
+
+pub fn job(doc: Value) -> Job {
+    parse_value(&doc, &Limits::default()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+pub fn run(doc: Value) -> Outcome {
+    job::run(&job(doc), &Silent).unwrap()
+}
+
+pub fn scene_file(name: &str) -> Value {
+    let path = format!("{}/scenes/{name}.json", env!("CARGO_MANIFEST_DIR"));
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// The document with its `solver` and `output` replaced.
+pub fn with_solver(doc: &Value, solver: Value, output: Value) -> Value {
+    let mut d = doc.clone();
+    d["solver"] = solver;
+    d["output"] = output;
+    d
+}
+
+/// The cell means of every surface, one channel, in order.
+pub fn cell_means(o: &Outcome, channel: usize) -> Vec<f64> {
+    o.result
+        .surfaces
+        .iter()
+        .flat_map(|s| s.cells.iter().map(move |c| c[channel]))
+        .collect()
+}
+
+/// ‖a − b‖ / ‖b‖.
+pub fn relative_l2(a: &[f64], b: &[f64]) -> f64 {
+    let d: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+    (d / b.iter().map(|y| y * y).sum::<f64>()).sqrt()
+}
