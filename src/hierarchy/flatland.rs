@@ -26,7 +26,7 @@ use crate::field::{Field, Leaf};
 use crate::geometry::Line;
 use crate::job::{JobError, Solution};
 use crate::kernel;
-use crate::progress::{Phase, Progress};
+use crate::progress::{Cancelled, Phase, Progress};
 use crate::projection::flatland::{emission_on, intersect, CellPair, Geometry};
 use crate::quadrature::Rule;
 use crate::result::HierarchyStats;
@@ -333,15 +333,20 @@ impl<'a> Hierarchy<'a> {
         }
     }
 
-    /// Computes the transfers of the links that have none, in parallel.
-    fn transfers(&mut self) -> u64 {
+    /// Computes the transfers of the links that have none, in parallel; stops early (leaving
+    /// links without transfers) once `progress` is cancelled.
+    fn transfers(&mut self, progress: &dyn Progress) -> Result<u64, Cancelled> {
         let k = self.k;
         let (geo, elements, order, quadrature) =
             (&self.geo, &self.elements, self.order, self.quadrature);
-        self.links
+        let evals = self
+            .links
             .par_iter_mut()
             .filter(|l| l.t.is_empty())
             .map(|l| {
+                if progress.cancelled() {
+                    return 0;
+                }
                 let (er, es) = (&elements[l.r], &elements[l.s]);
                 let pair = geo.pair(er.surface, es.surface);
                 let mut t = vec![0.0; k * k];
@@ -360,7 +365,9 @@ impl<'a> Hierarchy<'a> {
                 l.t = t;
                 evals
             })
-            .sum()
+            .sum::<u64>();
+        progress.check()?;
+        Ok(evals)
     }
 
     /// One refinement pass over the existing links against the current B; whether any changed.
@@ -590,7 +597,7 @@ pub fn solve(
             h.refine(r, s, true);
         }
     }
-    let mut evaluations = h.transfers();
+    let mut evaluations = h.transfers(progress)?;
     let mut history = Vec::new();
     let mut converged = h.solve(settings, &mut history, progress)?;
     for pass in 0..MAX_PASSES {
@@ -603,7 +610,7 @@ pub fn solve(
             break;
         }
         h.refinements += 1;
-        evaluations += h.transfers();
+        evaluations += h.transfers(progress)?;
         converged = h.solve(settings, &mut history, progress)?;
     }
     timings.insert("solve".to_string(), start.elapsed().as_secs_f64() * 1e3);
@@ -693,7 +700,7 @@ mod tests {
                 h.refine(r, s, true);
             }
         }
-        h.transfers();
+        h.transfers(&crate::progress::Silent).unwrap();
         for e in &mut h.elements {
             e.b = vec![[1.0; 3]];
         }
@@ -738,7 +745,7 @@ mod tests {
                 e.b = vec![[1.0; 3]];
             }
             h.rerefine();
-            h.transfers();
+            h.transfers(&crate::progress::Silent).unwrap();
         }
     }
 }
