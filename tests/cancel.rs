@@ -98,3 +98,24 @@ fn progress_is_reported_in_order() {
         .iter()
         .any(|&(p, f)| p == Phase::Projection && f == 1.0));
 }
+
+#[test]
+fn cancel_stops_the_hierarchical_method_within_a_second() {
+    let mut doc: serde_json::Value =
+        serde_json::from_str(include_str!("../scenes/flatland-room.json")).unwrap();
+    doc["solver"] = serde_json::json!({"method": "hierarchical", "order": 2, "resolution": 1024,
+        "epsilon": 1e-7, "tolerance": 1e-14, "max_iterations": 100000});
+    let job = parse_value(&doc, &Limits::default()).unwrap();
+    let r = Recorder {
+        cancel_in: Some((Phase::Refinement, 0.0)),
+        cancelled: AtomicBool::new(false),
+        at: Mutex::new(None),
+        seen: Mutex::new(vec![]),
+    };
+    assert_eq!(job::run(&job, &r).unwrap_err(), JobError::Cancelled);
+    let waited = r.at.lock().unwrap().unwrap().elapsed();
+    assert!(
+        waited < Duration::from_secs(1),
+        "stopped {waited:?} after the cancel"
+    );
+}
