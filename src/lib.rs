@@ -11,16 +11,22 @@
 //! measures eq. (5) and (6) → [`job`] gathers the result.
 
 pub mod basis;
+pub mod bvh;
 pub mod compress;
 pub mod field;
 pub mod geometry;
+pub mod hierarchy;
 pub mod job;
 pub mod kernel;
 pub mod metrics;
 pub mod progress;
 pub mod projection;
 pub mod quadrature;
+pub mod render;
 pub mod result;
 pub mod scene;
 pub mod solve;
+pub mod space;
+pub mod transfer;
 pub mod visibility;
+pub mod visibility3d;

@@ -7,6 +7,7 @@
 
 pub mod flatland;
 pub mod fredholm;
+pub mod three_d;
 
 use crate::progress::{Cancelled, Progress};
 use crate::scene::{Job, Rgb, SceneKind};
