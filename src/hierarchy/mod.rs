@@ -68,6 +68,7 @@ impl<'g> Hierarchy<'g> {
                 let mut e = vec![[0.0; 3]; k * k];
                 piece_emission(q, area, piece, k, &mut e);
                 Element {
+                    peak: refine::peak_emission(q, piece),
                     piece,
                     level: 0,
                     cell: [0, 0],
@@ -122,7 +123,7 @@ impl<'g> Hierarchy<'g> {
         let mut refined = 0;
         for l in old {
             let r = &self.elements[l.recv as usize];
-            let err = self.rho[r.piece.surface] * self.elements[l.src as usize].mean_b() * l.geom;
+            let err = self.rho[r.piece.surface] * self.elements[l.src as usize].brightness() * l.geom;
             let can = r.level < self.max_level || self.elements[l.src as usize].level < self.max_level;
             if can && err > self.threshold {
                 refined += 1;

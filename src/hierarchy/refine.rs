@@ -99,7 +99,9 @@ impl Hierarchy<'_> {
                 let mut e_coeffs = vec![[0.0; 3]; kk];
                 let quad = &self.quads[p.surface];
                 crate::projection::three_d::piece_emission(quad, self.geo.quads[p.surface].area, piece, self.k, &mut e_coeffs);
+                let peak = peak_emission(quad, piece);
                 self.elements.push(Element {
+                    peak,
                     piece,
                     level: parent.level + 1,
                     cell: [2 * parent.cell[0] + ds as u32, 2 * parent.cell[1] + dt as u32],
@@ -123,7 +125,7 @@ impl Hierarchy<'_> {
     /// Refines the interaction from `s` to `r`, appending accepted (recv, src, geom, V) pairs.
     pub(super) fn refine(&mut self, r: u32, s: u32, out: &mut Vec<(u32, u32, f64, f64)>) {
         let rho = self.rho[self.elements[r as usize].piece.surface];
-        let b = self.elements[s as usize].mean_b();
+        let b = self.elements[s as usize].brightness();
         let (f, smooth) = self.estimate(r, s);
         let thr = self.threshold;
         let can = self.splittable(r) || self.splittable(s);
@@ -182,5 +184,16 @@ impl Hierarchy<'_> {
                 }
             })
             .collect()
+    }
+}
+
+/// The largest emission channel of `quad` if `piece` overlaps its emission region, else 0.
+pub fn peak_emission(quad: &crate::scene::Quad, piece: Piece) -> f64 {
+    let (rs, rt) = quad.emission_region;
+    let overlaps = piece.s[0] < rs[1] && rs[0] < piece.s[1] && piece.t[0] < rt[1] && rt[0] < piece.t[1];
+    if overlaps {
+        quad.material.emission.iter().copied().fold(0.0, f64::max)
+    } else {
+        0.0
     }
 }

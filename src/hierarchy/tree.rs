@@ -25,6 +25,8 @@ pub struct Element {
     /// World area.
     pub area: f64,
     pub e: Vec<Rgb>,
+    /// The largest emission inside the element (a light patch may cover only part of it).
+    pub peak: f64,
     pub b: Vec<Rgb>,
     pub h: Vec<Rgb>,
 }
@@ -33,10 +35,11 @@ impl Element {
     pub fn is_leaf(&self) -> bool {
         self.children == NONE
     }
-    /// Mean of B (per channel, the largest).
-    pub fn mean_b(&self) -> f64 {
+    /// The brightness the oracle weighs a transfer by: the mean of B (largest channel) plus
+    /// the peak emission inside, so that a small light on a large surface is not averaged away.
+    pub fn brightness(&self) -> f64 {
         let c = self.b[0];
-        c[0].max(c[1]).max(c[2]) / self.area.sqrt()
+        c[0].max(c[1]).max(c[2]) / self.area.sqrt() + self.peak
     }
 }
 

@@ -99,9 +99,9 @@ fn in_front(a: &Parallelogram, b: &Parallelogram) -> bool {
 pub fn accuracy(q: usize) -> Accuracy {
     Accuracy {
         q_min: q,
-        digits: 8.0,
-        outer_depth: 12,
-        inner_depth: 16,
+        digits: 6.0,
+        outer_depth: 10,
+        inner_depth: 2,
     }
 }
 
