@@ -49,18 +49,27 @@ pub fn render_fields(job: &Job, fields: &[Field], width: u32, height: u32, opts:
         .collect();
     let (w, h) = (width as usize, height as usize);
     // radiance per sample, rows in parallel
-    let radiance: Vec<[f64; 3]> = (0..h)
+    let lights: Vec<Light> = quads
+        .iter()
+        .map(|q| Light {
+            on: q.material.emission != [0.0; 3],
+            region: q.emission_region,
+        })
+        .collect();
+    let radiance: Vec<([f64; 3], bool)> = (0..h)
         .into_par_iter()
         .flat_map_iter(|y| {
-            let (bvh, view, geo, smooth) = (&bvh, &view, &geo, &smooth);
+            let (bvh, view, geo, smooth, lights) = (&bvh, &view, &geo, &smooth, &lights);
             (0..w).map(move |x| {
                 let mut sum = [0.0; 3];
+                let mut lit = false;
                 for o in SAMPLES {
                     let d = view.ray(x as f64 + o[0], y as f64 + o[1]);
-                    let v = shade(bvh, geo, fields, smooth, view.eye, d, opts, view.pixel_angle);
+                    let (v, l) = shade(bvh, geo, fields, smooth, lights, view.eye, d, opts, view.pixel_angle);
+                    lit |= l;
                     (0..3).for_each(|c| sum[c] += v[c] / SAMPLES.len() as f64);
                 }
-                sum
+                (sum, lit)
             })
         })
         .collect();
@@ -69,7 +78,7 @@ pub fn render_fields(job: &Job, fields: &[Field], width: u32, height: u32, opts:
         Exposure::Auto => auto_exposure(&radiance),
     };
     let mut img = RgbImage::new(width, height);
-    for (i, v) in radiance.iter().enumerate() {
+    for (i, (v, _)) in radiance.iter().enumerate() {
         img.put_pixel((i % w) as u32, (i / w) as u32, encode(*v, white));
     }
     img
@@ -193,24 +202,35 @@ impl Smooth {
     }
 }
 
+/// Where a surface emits.
+struct Light {
+    on: bool,
+    region: ([f64; 2], [f64; 2]),
+}
+
+/// Radiance along the ray, and whether it sees a light (left out of the automatic exposure).
 #[allow(clippy::too_many_arguments)]
 fn shade(
     bvh: &Bvh,
     geo: &[Parallelogram],
     fields: &[Field],
     smooth: &[Option<Smooth>],
+    lights: &[Light],
     eye: V3,
     d: V3,
     opts: Options,
     pixel_angle: f64,
-) -> [f64; 3] {
+) -> ([f64; 3], bool) {
     let Some(hit) = bvh.first_hit(eye, d, 0.0, f64::INFINITY, [usize::MAX; 2]) else {
-        return [0.0; 3];
+        return ([0.0; 3], false);
     };
     let q = &geo[hit.surface];
     if dot(d, q.n) >= 0.0 {
-        return [0.0; 3];
+        return ([0.0; 3], false);
     }
+    let light = &lights[hit.surface];
+    let (rs, rt) = light.region;
+    let lit = light.on && (rs[0]..=rs[1]).contains(&hit.s) && (rt[0]..=rt[1]).contains(&hit.t);
     let (s, t) = (hit.s.clamp(0.0, 1.0), hit.t.clamp(0.0, 1.0));
     let field = &fields[hit.surface];
     let b = match &smooth[hit.surface] {
@@ -227,14 +247,16 @@ fn shade(
             l = l.map(|v| v * 0.35);
         }
     }
-    l
+    (l, lit)
 }
 
-/// The white point: the 97th percentile of the luminance of what the camera sees.
-fn auto_exposure(radiance: &[[f64; 3]]) -> f64 {
+/// The white point: the 97th percentile of the luminance of what the camera sees, lights
+/// left out (they would darken everything else).
+fn auto_exposure(radiance: &[([f64; 3], bool)]) -> f64 {
     let mut lum: Vec<f64> = radiance
         .iter()
-        .map(|v| 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2])
+        .filter(|(_, lit)| !lit)
+        .map(|(v, _)| 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2])
         .filter(|&v| v > 0.0)
         .collect();
     if lum.is_empty() {
