@@ -14,7 +14,8 @@ use wavrad::space::Parallelogram;
 use wavrad::visibility3d::SplitMix;
 
 fn scene(name: &str) -> String {
-    std::fs::read_to_string(format!("{}/scenes/{name}.json", env!("CARGO_MANIFEST_DIR"))).expect("scene")
+    std::fs::read_to_string(format!("{}/scenes/{name}.json", env!("CARGO_MANIFEST_DIR")))
+        .expect("scene")
 }
 
 fn cornell() -> Job {
@@ -25,7 +26,9 @@ fn cornell_box(c: &mut Criterion) {
     let j = cornell();
     let mut g = c.benchmark_group("cornell-box");
     g.sample_size(10);
-    g.bench_function("hierarchical solve", |b| b.iter(|| black_box(job::run(&j, &Silent).expect("solves"))));
+    g.bench_function("hierarchical solve", |b| {
+        b.iter(|| black_box(job::run(&j, &Silent).expect("solves")))
+    });
     g.bench_function("hierarchical solve + 512x512 image", |b| {
         b.iter(|| {
             let out = job::run(&j, &Silent).expect("solves");
@@ -37,8 +40,13 @@ fn cornell_box(c: &mut Criterion) {
 
 fn rays(c: &mut Criterion) {
     let j = cornell();
-    let SceneKind::ThreeD(quads) = &j.scene.kind else { unreachable!() };
-    let geo: Vec<Parallelogram> = quads.iter().map(|q| Parallelogram::new(&q.corners)).collect();
+    let SceneKind::ThreeD(quads) = &j.scene.kind else {
+        unreachable!()
+    };
+    let geo: Vec<Parallelogram> = quads
+        .iter()
+        .map(|q| Parallelogram::new(&q.corners))
+        .collect();
     let bvh = Bvh::new(&geo);
     // segments between random points of random pairs of surfaces, as the visibility tests cast
     let mut rng = SplitMix(7);
@@ -56,7 +64,11 @@ fn rays(c: &mut Criterion) {
     g.sample_size(10);
     g.throughput(Throughput::Elements(n as u64));
     g.bench_function("rays through the BVH (cornell box, all cores)", |b| {
-        b.iter(|| segs.par_iter().filter(|(a, e, skip)| bvh.occluded(*a, *e, *skip)).count())
+        b.iter(|| {
+            segs.par_iter()
+                .filter(|(a, e, skip)| bvh.occluded(*a, *e, *skip))
+                .count()
+        })
     });
     g.finish();
 }
@@ -73,7 +85,9 @@ fn growth(c: &mut Criterion) {
             let mut doc = base.clone();
             doc["solver"] = serde_json::json!({ "method": method, "order": 0, "resolution": n, "epsilon": 1e-3 });
             let j = parse_value(&doc, &Limits::default()).expect("valid");
-            g.bench_function(format!("{method} n={n}"), |b| b.iter(|| black_box(job::run(&j, &Silent).expect("solves"))));
+            g.bench_function(format!("{method} n={n}"), |b| {
+                b.iter(|| black_box(job::run(&j, &Silent).expect("solves")))
+            });
         }
     }
     g.finish();

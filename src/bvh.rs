@@ -233,16 +233,25 @@ mod tests {
     use super::*;
 
     fn square(z: f64, x0: f64) -> Parallelogram {
-        Parallelogram::new(&[[x0, 0.0, z], [x0 + 1.0, 0.0, z], [x0 + 1.0, 1.0, z], [x0, 1.0, z]])
+        Parallelogram::new(&[
+            [x0, 0.0, z],
+            [x0 + 1.0, 0.0, z],
+            [x0 + 1.0, 1.0, z],
+            [x0, 1.0, z],
+        ])
     }
 
     #[test]
     fn nearest_hit_and_occlusion_agree_with_brute_force() {
-        let quads: Vec<_> = (0..9).map(|i| square(i as f64 * 0.5, (i % 3) as f64 * 0.7)).collect();
+        let quads: Vec<_> = (0..9)
+            .map(|i| square(i as f64 * 0.5, (i % 3) as f64 * 0.7))
+            .collect();
         let bvh = Bvh::new(&quads);
         let mut seed = 12345u64;
         let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (seed >> 11) as f64 / (1u64 << 53) as f64
         };
         for _ in 0..2000 {

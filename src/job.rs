@@ -346,13 +346,16 @@ fn kernel_error_1d(
     }
 }
 
+/// Eq. (5) and the surface pairs it left out.
+type KernelError3d = (Option<f64>, Vec<(usize, usize)>);
+
 /// Eq. (5) for 3D scenes over the pairs of surfaces that do not touch.
 fn kernel_error_3d(
     quads: &[crate::scene::Quad],
     disc: Discretization,
     sol: &Solution,
     progress: &dyn Progress,
-) -> Result<(Option<f64>, Vec<(usize, usize)>), Cancelled> {
+) -> Result<KernelError3d, Cancelled> {
     progress.check()?;
     let geo = projection::three_d::Geometry::new(quads);
     let touching = geo.touching();

@@ -22,7 +22,11 @@ pub fn dot(a: V3, b: V3) -> f64 {
 }
 #[inline(always)]
 pub fn cross(a: V3, b: V3) -> V3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 #[inline(always)]
 pub fn norm(a: V3) -> f64 {
@@ -59,7 +63,15 @@ impl Parallelogram {
         let u = scale(u, 1.0 / dot(u, e1));
         let v = cross(n, e1);
         let v = scale(v, 1.0 / dot(v, e3));
-        Parallelogram { p0, e1, e3, n, area, u, v }
+        Parallelogram {
+            p0,
+            e1,
+            e3,
+            n,
+            area,
+            u,
+            v,
+        }
     }
 
     #[inline(always)]
@@ -86,7 +98,12 @@ impl Parallelogram {
 
     /// The corners of the piece `[s0,s1] × [t0,t1]`, counter-clockwise.
     pub fn piece(&self, s: [f64; 2], t: [f64; 2]) -> [V3; 4] {
-        [self.at(s[0], t[0]), self.at(s[1], t[0]), self.at(s[1], t[1]), self.at(s[0], t[1])]
+        [
+            self.at(s[0], t[0]),
+            self.at(s[1], t[0]),
+            self.at(s[1], t[1]),
+            self.at(s[0], t[1]),
+        ]
     }
 
     /// Length of the longer diagonal of the whole parallelogram.
@@ -99,7 +116,11 @@ impl Parallelogram {
 pub fn point_segment(p: V3, a: V3, b: V3) -> f64 {
     let d = sub(b, a);
     let l2 = dot(d, d);
-    let t = if l2 > 0.0 { (dot(sub(p, a), d) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if l2 > 0.0 {
+        (dot(sub(p, a), d) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     norm(sub(add(a, scale(d, t)), p))
 }
 
@@ -128,7 +149,11 @@ pub fn segment_segment(p1: V3, q1: V3, p2: V3, q2: V3) -> f64 {
         } else {
             let b = dot(d1, d2);
             let den = a * e - b * b;
-            let mut s0 = if den > eps * a * e { ((b * f - c * e) / den).clamp(0.0, 1.0) } else { 0.0 };
+            let mut s0 = if den > eps * a * e {
+                ((b * f - c * e) / den).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
             let mut t0 = (b * s0 + f) / e;
             if t0 < 0.0 {
                 t0 = 0.0;
@@ -196,7 +221,12 @@ mod tests {
 
     #[test]
     fn parametrisation_round_trips() {
-        let q = Parallelogram::new(&[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [3.0, 1.0, 0.0], [1.0, 1.0, 0.0]]);
+        let q = Parallelogram::new(&[
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [3.0, 1.0, 0.0],
+            [1.0, 1.0, 0.0],
+        ]);
         assert_eq!(q.n, [0.0, 0.0, 1.0]);
         assert!((q.area - 2.0).abs() < 1e-15);
         let (s, t) = q.params(q.at(0.3, 0.7));
@@ -205,16 +235,36 @@ mod tests {
 
     #[test]
     fn distances() {
-        let a = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        let a = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
         let up = [0.0, 0.0, 1.0];
         let lifted = a.map(|p| [p[0] + 0.5, p[1], p[2] + 2.0]);
         assert!((quad_quad(&a, up, &lifted, up) - 2.0).abs() < 1e-15);
         // a wall sharing the edge x = 1
-        let wall = [[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [1.0, 0.0, 1.0]];
+        let wall = [
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [1.0, 1.0, 1.0],
+            [1.0, 0.0, 1.0],
+        ];
         assert_eq!(quad_quad(&a, up, &wall, [1.0, 0.0, 0.0]), 0.0);
         // a segment piercing the square
-        let pierce = [[0.5, 0.5, -1.0], [0.6, 0.5, -1.0], [0.6, 0.5, 1.0], [0.5, 0.5, 1.0]];
+        let pierce = [
+            [0.5, 0.5, -1.0],
+            [0.6, 0.5, -1.0],
+            [0.6, 0.5, 1.0],
+            [0.5, 0.5, 1.0],
+        ];
         assert_eq!(quad_quad(&a, up, &pierce, [0.0, -1.0, 0.0]), 0.0);
-        assert!((segment_segment([0.0; 3], [1.0, 0.0, 0.0], [0.5, 1.0, 1.0], [0.5, 1.0, 2.0]) - 2f64.sqrt()).abs() < 1e-15);
+        assert!(
+            (segment_segment([0.0; 3], [1.0, 0.0, 0.0], [0.5, 1.0, 1.0], [0.5, 1.0, 2.0])
+                - 2f64.sqrt())
+            .abs()
+                < 1e-15
+        );
     }
 }

@@ -73,7 +73,14 @@ pub enum Integrand {
 }
 
 /// Adds the transfer from `b` to `a` to `out` (k² × k² for Galerkin, 1 for Squared).
-pub fn block(quads: &[Parallelogram], a: Piece, b: Piece, what: Integrand, acc: Accuracy, out: &mut [f64]) {
+pub fn block(
+    quads: &[Parallelogram],
+    a: Piece,
+    b: Piece,
+    what: Integrand,
+    acc: Accuracy,
+    out: &mut [f64],
+) {
     let (qa, qb) = (&quads[a.surface], &quads[b.surface]);
     let area = |q: &Parallelogram, p: &Piece| q.area * (p.s[1] - p.s[0]) * (p.t[1] - p.t[0]);
     let (k, scale) = match what {
@@ -105,11 +112,29 @@ struct Rect {
 impl Rect {
     fn halves_s(&self) -> [Rect; 2] {
         let m = 0.5 * (self.s[0] + self.s[1]);
-        [Rect { s: [self.s[0], m], t: self.t }, Rect { s: [m, self.s[1]], t: self.t }]
+        [
+            Rect {
+                s: [self.s[0], m],
+                t: self.t,
+            },
+            Rect {
+                s: [m, self.s[1]],
+                t: self.t,
+            },
+        ]
     }
     fn halves_t(&self) -> [Rect; 2] {
         let m = 0.5 * (self.t[0] + self.t[1]);
-        [Rect { s: self.s, t: [self.t[0], m] }, Rect { s: self.s, t: [m, self.t[1]] }]
+        [
+            Rect {
+                s: self.s,
+                t: [self.t[0], m],
+            },
+            Rect {
+                s: self.s,
+                t: [m, self.t[1]],
+            },
+        ]
     }
 }
 
@@ -165,7 +190,9 @@ impl Ctx<'_> {
         let size = diameter(&ca).max(diameter(&cb));
         let dist = quad_quad(&ca, self.qa.n, &cb, self.qb.n);
         if dist >= size {
-            let q = points(dist, size, self.acc.digits).max(self.acc.q_min).min(MAX_Q);
+            let q = points(dist, size, self.acc.digits)
+                .max(self.acc.q_min)
+                .min(MAX_Q);
             self.far(ra, rb, q, out);
         } else if dist > 0.5 * size && depth < 2 {
             for ha in ra.halves_s() {
@@ -228,7 +255,9 @@ impl Ctx<'_> {
         // to the ends of a shared edge
         let vertex = |r: &Rect| {
             let c = corners(self.qa, *r);
-            cb.iter().map(|v| point_quad(*v, &c, self.qa.n)).fold(f64::INFINITY, f64::min)
+            cb.iter()
+                .map(|v| point_quad(*v, &c, self.qa.n))
+                .fold(f64::INFINITY, f64::min)
         };
         let d = quad_quad(&ca, self.qa.n, cb, self.qb.n);
         let dv = vertex(&ra);
@@ -246,8 +275,16 @@ impl Ctx<'_> {
             // meets the piece's interior (a box standing on a floor cell)
             let inside = d < ext_s.min(ext_t);
             match (split_s, split_t) {
-                (true, false) => return hs.iter().for_each(|r| self.outer(*r, rb, cb, depth + 1, out)),
-                (false, true) => return ht.iter().for_each(|r| self.outer(*r, rb, cb, depth + 1, out)),
+                (true, false) => {
+                    return hs
+                        .iter()
+                        .for_each(|r| self.outer(*r, rb, cb, depth + 1, out))
+                }
+                (false, true) => {
+                    return ht
+                        .iter()
+                        .for_each(|r| self.outer(*r, rb, cb, depth + 1, out))
+                }
                 (true, true) => return self.quarters(ra, rb, cb, depth, out),
                 (false, false) if inside => return self.quarters(ra, rb, cb, depth, out),
                 (false, false) => {}
@@ -255,7 +292,9 @@ impl Ctx<'_> {
         }
         let kk = self.k * self.k;
         let size = ext_s.max(ext_t);
-        let q = points(d, size, self.acc.digits).max(self.acc.q_min).clamp(2, 6);
+        let q = points(d, size, self.acc.digits)
+            .max(self.acc.q_min)
+            .clamp(2, 6);
         let rule = Rule::gauss(q);
         let mut tmp = [0.0; MAX_K * MAX_K];
         let mut phi_a = [0.0; MAX_K * MAX_K];
@@ -362,7 +401,11 @@ pub fn point_polygon(x: V3, n: V3, poly: &[V3; 4]) -> f64 {
         }
         if (da > 0.0) != (db > 0.0) {
             let t = da / (da - db);
-            clipped.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])]);
+            clipped.push([
+                a[0] + t * (b[0] - a[0]),
+                a[1] + t * (b[1] - a[1]),
+                a[2] + t * (b[2] - a[2]),
+            ]);
         }
     }
     let m = clipped.len();
@@ -395,7 +438,10 @@ mod tests {
         let (x, y) = (a / c, b / c);
         let (x1, y1) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
         2.0 / (PI * x * y)
-            * (((1.0 + x * x) * (1.0 + y * y) / (1.0 + x * x + y * y)).sqrt().ln() + x * y1 * (x / y1).atan()
+            * (((1.0 + x * x) * (1.0 + y * y) / (1.0 + x * x + y * y))
+                .sqrt()
+                .ln()
+                + x * y1 * (x / y1).atan()
                 + y * x1 * (y / x1).atan()
                 - x * x.atan()
                 - y * y.atan())
@@ -409,20 +455,33 @@ mod tests {
         let b = ww * ww * (1.0 + hh * hh + ww * ww) / ((1.0 + ww * ww) * (hh * hh + ww * ww));
         let c = hh * hh * (1.0 + hh * hh + ww * ww) / ((1.0 + hh * hh) * (hh * hh + ww * ww));
         1.0 / (PI * ww)
-            * (ww * (1.0 / ww).atan() + hh * (1.0 / hh).atan() - (hh * hh + ww * ww).sqrt() * (1.0 / (hh * hh + ww * ww).sqrt()).atan()
+            * (ww * (1.0 / ww).atan() + hh * (1.0 / hh).atan()
+                - (hh * hh + ww * ww).sqrt() * (1.0 / (hh * hh + ww * ww).sqrt()).atan()
                 + 0.25 * (a * b.powf(ww * ww) * c.powf(hh * hh)).ln())
     }
 
     fn form_factor(quads: &[Parallelogram]) -> f64 {
         let mut out = [0.0];
-        block(quads, Piece::whole(0), Piece::whole(1), Integrand::Galerkin { k: 1 }, Accuracy::fine(4), &mut out);
+        block(
+            quads,
+            Piece::whole(0),
+            Piece::whole(1),
+            Integrand::Galerkin { k: 1 },
+            Accuracy::fine(4),
+            &mut out,
+        );
         // T = ∫∫K / √(A_a A_b) = F_ab √(A_a / A_b)
         out[0] * (quads[1].area / quads[0].area).sqrt()
     }
 
     #[test]
     fn parallel_unit_squares_match_c11() {
-        let floor = unit([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]);
+        let floor = unit([
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ]);
         for c in [0.25, 1.0, 3.0] {
             let top = unit([[0.0, 0.0, c], [0.0, 1.0, c], [1.0, 1.0, c], [1.0, 0.0, c]]);
             let f = form_factor(&[floor, top]);
@@ -434,8 +493,18 @@ mod tests {
 
     #[test]
     fn perpendicular_unit_squares_match_c14() {
-        let floor = unit([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]);
-        let wall = unit([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 0.0, 0.0]]);
+        let floor = unit([
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ]);
+        let wall = unit([
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+        ]);
         let f = form_factor(&[floor, wall]);
         let want = perpendicular_common_edge(1.0, 1.0, 1.0);
         assert!((want - 0.200044).abs() < 1e-6, "{want}");
@@ -445,17 +514,53 @@ mod tests {
     #[test]
     fn reciprocity_of_linear_blocks() {
         // T_ab = T_baᵀ for any order, near or far
-        let floor = unit([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]);
-        let wall = unit([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 0.0, 0.0]]);
+        let floor = unit([
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ]);
+        let wall = unit([
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+        ]);
         let quads = [floor, wall];
-        let (a, b) = (Piece::whole(0), Piece { surface: 1, s: [0.0, 0.5], t: [0.5, 1.0] });
+        let (a, b) = (
+            Piece::whole(0),
+            Piece {
+                surface: 1,
+                s: [0.0, 0.5],
+                t: [0.5, 1.0],
+            },
+        );
         let mut ab = [0.0; 16];
         let mut ba = [0.0; 16];
-        block(&quads, a, b, Integrand::Galerkin { k: 2 }, Accuracy::fine(4), &mut ab);
-        block(&quads, b, a, Integrand::Galerkin { k: 2 }, Accuracy::fine(4), &mut ba);
+        block(
+            &quads,
+            a,
+            b,
+            Integrand::Galerkin { k: 2 },
+            Accuracy::fine(4),
+            &mut ab,
+        );
+        block(
+            &quads,
+            b,
+            a,
+            Integrand::Galerkin { k: 2 },
+            Accuracy::fine(4),
+            &mut ba,
+        );
         for r in 0..4 {
             for c in 0..4 {
-                assert!((ab[r * 4 + c] - ba[c * 4 + r]).abs() < 1e-6, "{r},{c}: {} {}", ab[r * 4 + c], ba[c * 4 + r]);
+                assert!(
+                    (ab[r * 4 + c] - ba[c * 4 + r]).abs() < 1e-6,
+                    "{r},{c}: {} {}",
+                    ab[r * 4 + c],
+                    ba[c * 4 + r]
+                );
             }
         }
     }

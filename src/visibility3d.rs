@@ -36,7 +36,11 @@ impl Piece {
 /// Whether the parallelogram `q` may meet the convex hull of `points` (conservative).
 pub fn may_occlude(points: &[V3], q: &Parallelogram) -> bool {
     let qc = q.piece([0.0, 1.0], [0.0, 1.0]);
-    let scale = q.diameter() + points.iter().map(|p| norm(sub(*p, points[0]))).fold(0.0, f64::max);
+    let scale = q.diameter()
+        + points
+            .iter()
+            .map(|p| norm(sub(*p, points[0])))
+            .fold(0.0, f64::max);
     let tol = 1e-9 * scale;
     let separated = |axis: V3| {
         let l = norm(axis);
@@ -88,7 +92,12 @@ fn unit(a: usize) -> V3 {
 }
 
 /// The surfaces that may occlude some ray between pieces `a` and `b`, out of `candidates`.
-pub fn occluders_of(quads: &[Parallelogram], a: Piece, b: Piece, candidates: &[usize]) -> Vec<usize> {
+pub fn occluders_of(
+    quads: &[Parallelogram],
+    a: Piece,
+    b: Piece,
+    candidates: &[usize],
+) -> Vec<usize> {
     let ca = a.corners(quads);
     let cb = b.corners(quads);
     let pts = [ca[0], ca[1], ca[2], ca[3], cb[0], cb[1], cb[2], cb[3]];
@@ -186,7 +195,12 @@ mod tests {
         let floor = square(0.0, 0.0, 1.0, true);
         let ceiling = square(1.0, 0.0, 1.0, false);
         let blocker = square(0.5, 0.3, 0.6, true);
-        let wall = Parallelogram::new(&[[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]]);
+        let wall = Parallelogram::new(&[
+            [0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 1.0, 1.0],
+            [0.0, 0.0, 1.0],
+        ]);
         let far = square(3.0, 5.0, 6.0, true);
         let quads = [floor, ceiling, blocker, wall, far];
         let occ = surface_occluders(&quads);
@@ -200,8 +214,16 @@ mod tests {
         let w = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 8, 7, &mut rays);
         assert_eq!(v, w);
         // a piece under the blocker sees nothing of the piece above it
-        let a = Piece { surface: 0, s: [0.4, 0.5], t: [0.4, 0.5] };
-        let b = Piece { surface: 1, s: [0.4, 0.5], t: [0.5, 0.6] };
+        let a = Piece {
+            surface: 0,
+            s: [0.4, 0.5],
+            t: [0.4, 0.5],
+        };
+        let b = Piece {
+            surface: 1,
+            s: [0.4, 0.5],
+            t: [0.5, 0.6],
+        };
         assert_eq!(visible_fraction(&bvh, a, b, 4, 1, &mut rays), 0.0);
     }
 }

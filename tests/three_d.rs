@@ -45,10 +45,14 @@ fn furnace_cube_for_every_method_and_order() {
     let want = e / (1.0 - rho);
     let mut cases = vec![];
     for order in [0, 1] {
-        cases.push(json!({ "method": "projection", "order": order, "resolution": 2, "tolerance": 1e-9 }));
+        cases.push(
+            json!({ "method": "projection", "order": order, "resolution": 2, "tolerance": 1e-9 }),
+        );
     }
     for order in [0, 1, 2] {
-        cases.push(json!({ "method": "hierarchical", "order": order, "resolution": 4, "tolerance": 1e-9 }));
+        cases.push(
+            json!({ "method": "hierarchical", "order": order, "resolution": 4, "tolerance": 1e-9 }),
+        );
     }
     for solver in cases {
         let mut doc = furnace(e, rho);
@@ -60,7 +64,12 @@ fn furnace_cube_for_every_method_and_order() {
                 assert!(rel < 1e-3, "{solver}: {} mean {:?}", s.name, s.mean);
             }
             for cell in &s.cells {
-                assert!((cell[0] - want).abs() / want < 2e-3, "{solver}: {} cell {:?}", s.name, cell);
+                assert!(
+                    (cell[0] - want).abs() / want < 2e-3,
+                    "{solver}: {} cell {:?}",
+                    s.name,
+                    cell
+                );
             }
         }
     }
@@ -75,8 +84,14 @@ fn unit_pair(second: [[f64; 3]; 4]) -> Job {
 
 /// F from the first unit square to the second, from the order-0 matrix on one cell each.
 fn form_factor(j: &Job) -> f64 {
-    let SceneKind::ThreeD(quads) = &j.scene.kind else { unreachable!() };
-    let disc = Discretization { order: 0, cells: 1, quadrature: 6 };
+    let SceneKind::ThreeD(quads) = &j.scene.kind else {
+        unreachable!()
+    };
+    let disc = Discretization {
+        order: 0,
+        cells: 1,
+        quadrature: 6,
+    };
     let sys = three_d::build(quads, disc, &Silent).expect("builds");
     sys.matrix.get(0, 1)
 }
@@ -88,7 +103,9 @@ fn parallel_opposed_unit_squares_howell_c11() {
         let j = unit_pair([[0.0, 0.0, c], [0.0, 1.0, c], [1.0, 1.0, c], [1.0, 0.0, c]]);
         let (x, y) = (1.0 / c, 1.0 / c);
         let want = 2.0 / (PI * x * y)
-            * (((1.0 + x * x) * (1.0 + y * y) / (1.0 + x * x + y * y)).sqrt().ln()
+            * (((1.0 + x * x) * (1.0 + y * y) / (1.0 + x * x + y * y))
+                .sqrt()
+                .ln()
                 + x * (1.0 + y * y).sqrt() * (x / (1.0 + y * y).sqrt()).atan()
                 + y * (1.0 + x * x).sqrt() * (y / (1.0 + x * x).sqrt()).atan()
                 - x * x.atan()
@@ -101,7 +118,12 @@ fn parallel_opposed_unit_squares_howell_c11() {
 #[test]
 fn perpendicular_unit_squares_with_a_common_edge_howell_c14() {
     use std::f64::consts::PI;
-    let j = unit_pair([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 0.0, 0.0]]);
+    let j = unit_pair([
+        [0.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 0.0, 0.0],
+    ]);
     // H = W = 1
     let (h, w) = (1.0f64, 1.0f64);
     let a = (1.0 + h * h) * (1.0 + w * w) / (1.0 + h * h + w * w);
@@ -144,19 +166,24 @@ fn hierarchical_links_grow_linearly_with_the_leaves() {
     let mut rows = vec![];
     for eps in [8e-3, 2e-3, 1e-3] {
         let mut doc = scene_file("cornell-box");
-        doc["solver"] = json!({ "method": "hierarchical", "order": 0, "resolution": 64, "epsilon": eps });
+        doc["solver"] =
+            json!({ "method": "hierarchical", "order": 0, "resolution": 64, "epsilon": eps });
         let h = run(doc).result.hierarchical.expect("stats");
         rows.push((h.leaves as f64, h.links as f64));
     }
     let growth = rows[2].0 / rows[0].0;
     let per_leaf: Vec<f64> = rows.iter().map(|(l, k)| k / l).collect();
     assert!(growth > 8.0, "{rows:?}");
-    assert!(per_leaf[2] < 2.5 * per_leaf[0], "links per leaf {per_leaf:?} over {rows:?}");
+    assert!(
+        per_leaf[2] < 2.5 * per_leaf[0],
+        "links per leaf {per_leaf:?} over {rows:?}"
+    );
     // and at a fixed epsilon, a finer resolution limit adds leaves but not links per leaf
     let mut rows = vec![];
     for res in [8, 64] {
         let mut doc = scene_file("cornell-box");
-        doc["solver"] = json!({ "method": "hierarchical", "order": 0, "resolution": res, "epsilon": 2e-3 });
+        doc["solver"] =
+            json!({ "method": "hierarchical", "order": 0, "resolution": res, "epsilon": 2e-3 });
         let h = run(doc).result.hierarchical.expect("stats");
         rows.push(h.links as f64 / h.leaves as f64);
     }
@@ -174,8 +201,14 @@ fn cornell_box_renders_with_colour_bleeding_and_deterministically() {
     // the camera looks along +z with +y up, so x = 0 (the red wall) is on the right
     let left = img.get_pixel(3, 32).0;
     let right = img.get_pixel(60, 32).0;
-    assert!(left[1] > left[0] && left[1] > left[2], "green wall {left:?}");
-    assert!(right[0] > right[1] && right[0] > right[2], "red wall {right:?}");
+    assert!(
+        left[1] > left[0] && left[1] > left[2],
+        "green wall {left:?}"
+    );
+    assert!(
+        right[0] > right[1] && right[0] > right[2],
+        "red wall {right:?}"
+    );
     // the white back wall picks up some red near the red wall
     let names = j.surface_names();
     let back = names.iter().position(|n| n == "back").expect("back wall");

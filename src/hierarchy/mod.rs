@@ -18,7 +18,7 @@ pub mod tree;
 use crate::basis::Filters;
 use crate::field::{Field, Leaf};
 use crate::job::{JobError, Solution};
-use crate::progress::{Phase, Progress};
+use crate::progress::{Cancelled, Phase, Progress};
 use crate::projection::three_d::{piece_emission, Geometry};
 use crate::result::HierarchyStats;
 use crate::scene::{Job, Quad, Rgb, SceneKind};
@@ -53,7 +53,13 @@ pub struct Hierarchy<'g> {
 
 impl<'g> Hierarchy<'g> {
     /// Roots for every surface, with E projected; no links yet.
-    pub fn new(geo: &'g Geometry, quads: &'g [Quad], order: usize, resolution: usize, epsilon: f64) -> Hierarchy<'g> {
+    pub fn new(
+        geo: &'g Geometry,
+        quads: &'g [Quad],
+        order: usize,
+        resolution: usize,
+        epsilon: f64,
+    ) -> Hierarchy<'g> {
         let k = order + 1;
         let emax = quads
             .iter()
@@ -101,7 +107,7 @@ impl<'g> Hierarchy<'g> {
     }
 
     /// Links every pair of facing surfaces, refined against the current B.
-    pub fn link_all(&mut self) {
+    pub fn link_all(&mut self, progress: &dyn Progress) -> Result<(), Cancelled> {
         let n = self.quads.len();
         let mut pending = Vec::new();
         for i in 0..n {
@@ -110,27 +116,34 @@ impl<'g> Hierarchy<'g> {
                     self.refine(i as u32, j as u32, &mut pending);
                 }
             }
+            progress.check()?;
         }
-        self.links = self.make_links(&pending);
+        self.links = self.make_links(&pending, progress)?;
         self.sort_links();
+        Ok(())
     }
 
     /// Re-evaluates every link with the current B; returns how many were refined.
-    pub fn rerefine(&mut self) -> usize {
+    pub fn rerefine(&mut self, progress: &dyn Progress) -> Result<usize, Cancelled> {
         let old = std::mem::take(&mut self.links);
         let mut keep = Vec::with_capacity(old.len());
         let mut pending = Vec::new();
         let mut refined = 0;
         for l in old {
             let r = &self.elements[l.recv as usize];
-            let err = self.rho[r.piece.surface] * self.elements[l.src as usize].brightness() * l.geom;
-            let can = r.level < self.max_level || self.elements[l.src as usize].level < self.max_level;
+            let err =
+                self.rho[r.piece.surface] * self.elements[l.src as usize].brightness() * l.geom;
+            let can =
+                r.level < self.max_level || self.elements[l.src as usize].level < self.max_level;
             if can && err > self.threshold {
                 refined += 1;
                 let before = pending.len();
                 self.refine(l.recv, l.src, &mut pending);
                 // the same pair may come back unrefined (its estimate changed); keep its block
-                if pending.len() == before + 1 && pending[before].0 == l.recv && pending[before].1 == l.src {
+                if pending.len() == before + 1
+                    && pending[before].0 == l.recv
+                    && pending[before].1 == l.src
+                {
                     pending.pop();
                     refined -= 1;
                     keep.push(l);
@@ -139,10 +152,10 @@ impl<'g> Hierarchy<'g> {
                 keep.push(l);
             }
         }
-        keep.extend(self.make_links(&pending));
+        keep.extend(self.make_links(&pending, progress)?);
         self.links = keep;
         self.sort_links();
-        refined
+        Ok(refined)
     }
 
     fn sort_links(&mut self) {
@@ -168,11 +181,10 @@ impl<'g> Hierarchy<'g> {
                 let mut h = vec![[0.0; 3]; kk];
                 for l in links {
                     let b = &self.elements[l.src as usize].b;
-                    for r in 0..kk {
-                        let row = &l.block[r * kk..(r + 1) * kk];
-                        for (c, v) in row.iter().enumerate() {
+                    for (hr, row) in h.iter_mut().zip(l.block.chunks_exact(kk)) {
+                        for (v, bc) in row.iter().zip(b) {
                             for ch in 0..3 {
-                                h[r][ch] += v * b[c][ch];
+                                hr[ch] += v * bc[ch];
                             }
                         }
                     }
@@ -232,7 +244,13 @@ impl<'g> Hierarchy<'g> {
             let (dt, ds) = ((i / 2) as usize, (i % 2) as usize);
             push(self.filters, &total, dt, ds, &mut child_down);
             self.push_pull(first + i, &child_down.clone(), change, norm);
-            pull(self.filters, &self.elements[(first + i) as usize].b, dt, ds, &mut b);
+            pull(
+                self.filters,
+                &self.elements[(first + i) as usize].b,
+                dt,
+                ds,
+                &mut b,
+            );
         }
         self.elements[e as usize].b = b;
     }
@@ -271,7 +289,12 @@ impl<'g> Hierarchy<'g> {
             elements: self.elements.len(),
             leaves: self.elements.iter().filter(|e| e.is_leaf()).count(),
             links: self.links.len(),
-            levels: self.elements.iter().map(|e| e.level as usize + 1).max().unwrap_or(0),
+            levels: self
+                .elements
+                .iter()
+                .map(|e| e.level as usize + 1)
+                .max()
+                .unwrap_or(0),
             refinements: self.refinements,
             rays: self.rays,
         }
@@ -279,7 +302,12 @@ impl<'g> Hierarchy<'g> {
 }
 
 /// Solves a job by hierarchical wavelet radiosity at the given order and finest resolution.
-pub fn solve(job: &Job, order: usize, resolution: usize, progress: &dyn Progress) -> Result<Solution, JobError> {
+pub fn solve(
+    job: &Job,
+    order: usize,
+    resolution: usize,
+    progress: &dyn Progress,
+) -> Result<Solution, JobError> {
     let SceneKind::ThreeD(quads) = &job.scene.kind else {
         return Err(JobError::Unsupported(format!(
             "{} scenes with the hierarchical method are not available in this build",
@@ -291,7 +319,7 @@ pub fn solve(job: &Job, order: usize, resolution: usize, progress: &dyn Progress
     progress.report(Phase::Refinement, 0.0);
     let geo = Geometry::new(quads);
     let mut h = Hierarchy::new(&geo, quads, order, resolution, job.solver.epsilon);
-    h.link_all();
+    h.link_all(progress)?;
     let mut refine_ms = ms(t);
     let mut solve_ms = 0.0;
     let mut history = Vec::new();
@@ -306,7 +334,10 @@ pub fn solve(job: &Job, order: usize, resolution: usize, progress: &dyn Progress
             residual = h.sweep();
             iterations += 1;
             history.push(residual);
-            progress.report(Phase::Solve, (iterations as f64 / job.solver.max_iterations as f64).min(1.0));
+            progress.report(
+                Phase::Solve,
+                (iterations as f64 / job.solver.max_iterations as f64).min(1.0),
+            );
             if residual < job.solver.tolerance {
                 converged = true;
                 break;
@@ -319,7 +350,7 @@ pub fn solve(job: &Job, order: usize, resolution: usize, progress: &dyn Progress
         let t = Instant::now();
         progress.check()?;
         progress.report(Phase::Refinement, (pass + 1) as f64 / MAX_PASSES as f64);
-        let refined = h.rerefine();
+        let refined = h.rerefine(progress)?;
         refine_ms += ms(t);
         if refined == 0 {
             break;
@@ -331,7 +362,11 @@ pub fn solve(job: &Job, order: usize, resolution: usize, progress: &dyn Progress
     let emission = h.fields(|e| &e.e);
     let irradiance = h.fields(|e| &e.h);
     let kk = h.k * h.k;
-    let mut sorted: Vec<f64> = h.links.iter().flat_map(|l| l.block.iter().map(|v| v.abs())).collect();
+    let mut sorted: Vec<f64> = h
+        .links
+        .iter()
+        .flat_map(|l| l.block.iter().map(|v| v.abs()))
+        .collect();
     sorted.sort_by(|a, b| b.total_cmp(a));
     let leaf_b: Vec<Rgb> = h
         .elements

@@ -16,6 +16,7 @@
 
 use super::tree::{push, Element, NONE};
 use super::Hierarchy;
+use crate::progress::{Cancelled, Progress};
 use crate::projection::three_d::VISIBILITY_GRID;
 use crate::space::{dot, norm, quad_quad, sub};
 use crate::transfer::{self, Integrand};
@@ -39,7 +40,10 @@ impl Hierarchy<'_> {
     /// A stable identity of an element (surface, level, cell) for seeding its rays.
     fn identity(&self, e: u32) -> u64 {
         let el = &self.elements[e as usize];
-        ((el.piece.surface as u64) << 48) | ((el.level as u64) << 40) | ((el.cell[1] as u64) << 20) | el.cell[0] as u64
+        ((el.piece.surface as u64) << 48)
+            | ((el.level as u64) << 40)
+            | ((el.cell[1] as u64) << 20)
+            | el.cell[0] as u64
     }
 
     /// (F̂, smoothness factor) of the oracle.
@@ -48,8 +52,19 @@ impl Hierarchy<'_> {
         let qr = &self.geo.quads[er.piece.surface];
         let qs = &self.geo.quads[es.piece.surface];
         let samples = |p: &Piece| {
-            let at = |u: f64, v: f64| (p.s[0] + u * (p.s[1] - p.s[0]), p.t[0] + v * (p.t[1] - p.t[0]));
-            [at(0.5, 0.5), at(0.2, 0.2), at(0.8, 0.2), at(0.2, 0.8), at(0.8, 0.8)]
+            let at = |u: f64, v: f64| {
+                (
+                    p.s[0] + u * (p.s[1] - p.s[0]),
+                    p.t[0] + v * (p.t[1] - p.t[0]),
+                )
+            };
+            [
+                at(0.5, 0.5),
+                at(0.2, 0.2),
+                at(0.8, 0.2),
+                at(0.2, 0.8),
+                at(0.8, 0.8),
+            ]
         };
         let mut f: f64 = 0.0;
         for (sr, tr) in samples(&er.piece) {
@@ -98,13 +113,22 @@ impl Hierarchy<'_> {
                 push(self.filters, &parent.b, dt, ds, &mut b);
                 let mut e_coeffs = vec![[0.0; 3]; kk];
                 let quad = &self.quads[p.surface];
-                crate::projection::three_d::piece_emission(quad, self.geo.quads[p.surface].area, piece, self.k, &mut e_coeffs);
+                crate::projection::three_d::piece_emission(
+                    quad,
+                    self.geo.quads[p.surface].area,
+                    piece,
+                    self.k,
+                    &mut e_coeffs,
+                );
                 let peak = peak_emission(quad, piece);
                 self.elements.push(Element {
                     peak,
                     piece,
                     level: parent.level + 1,
-                    cell: [2 * parent.cell[0] + ds as u32, 2 * parent.cell[1] + dt as u32],
+                    cell: [
+                        2 * parent.cell[0] + ds as u32,
+                        2 * parent.cell[1] + dt as u32,
+                    ],
                     parent: e,
                     children: NONE,
                     area: parent.area / 4.0,
@@ -133,10 +157,15 @@ impl Hierarchy<'_> {
             self.descend(r, s, out);
             return;
         }
-        let (pr, ps) = (self.elements[r as usize].piece, self.elements[s as usize].piece);
+        let (pr, ps) = (
+            self.elements[r as usize].piece,
+            self.elements[s as usize].piece,
+        );
         let seed = pair_seed(self.identity(r), self.identity(s));
         let mut rays = 0;
-        let v = self.geo.visibility(pr, ps, seed, VISIBILITY_GRID, &mut rays);
+        let v = self
+            .geo
+            .visibility(pr, ps, seed, VISIBILITY_GRID, &mut rays);
         self.rays += rays;
         if v == 0.0 {
             return;
@@ -151,7 +180,8 @@ impl Hierarchy<'_> {
 
     fn descend(&mut self, r: u32, s: u32, out: &mut Vec<(u32, u32, f64, f64)>) {
         let split_r = self.splittable(r)
-            && (!self.splittable(s) || self.elements[r as usize].area >= self.elements[s as usize].area);
+            && (!self.splittable(s)
+                || self.elements[r as usize].area >= self.elements[s as usize].area);
         if split_r {
             let c = self.split(r);
             for i in 0..4 {
@@ -166,22 +196,37 @@ impl Hierarchy<'_> {
     }
 
     /// Integrates the blocks of accepted pairs, in parallel.
-    pub(super) fn make_links(&self, pending: &[(u32, u32, f64, f64)]) -> Vec<Link> {
+    pub(super) fn make_links(
+        &self,
+        pending: &[(u32, u32, f64, f64)],
+        progress: &dyn Progress,
+    ) -> Result<Vec<Link>, Cancelled> {
         let kk = self.k * self.k;
         pending
             .par_iter()
             .map(|&(recv, src, geom, visibility)| {
+                progress.check()?;
                 let mut block = vec![0.0; kk * kk];
-                let (a, b) = (self.elements[recv as usize].piece, self.elements[src as usize].piece);
-                transfer::block(&self.geo.quads, a, b, Integrand::Galerkin { k: self.k }, self.accuracy, &mut block);
+                let (a, b) = (
+                    self.elements[recv as usize].piece,
+                    self.elements[src as usize].piece,
+                );
+                transfer::block(
+                    &self.geo.quads,
+                    a,
+                    b,
+                    Integrand::Galerkin { k: self.k },
+                    self.accuracy,
+                    &mut block,
+                );
                 block.iter_mut().for_each(|v| *v *= visibility);
-                Link {
+                Ok(Link {
                     recv,
                     src,
                     geom,
                     visibility,
                     block,
-                }
+                })
             })
             .collect()
     }
@@ -190,7 +235,8 @@ impl Hierarchy<'_> {
 /// The largest emission channel of `quad` if `piece` overlaps its emission region, else 0.
 pub fn peak_emission(quad: &crate::scene::Quad, piece: Piece) -> f64 {
     let (rs, rt) = quad.emission_region;
-    let overlaps = piece.s[0] < rs[1] && rs[0] < piece.s[1] && piece.t[0] < rt[1] && rt[0] < piece.t[1];
+    let overlaps =
+        piece.s[0] < rs[1] && rs[0] < piece.s[1] && piece.t[0] < rt[1] && rt[0] < piece.t[1];
     if overlaps {
         quad.material.emission.iter().copied().fold(0.0, f64::max)
     } else {

@@ -102,7 +102,9 @@ mod tests {
         for m in 0..=3 {
             let f = Filters::of_order(m);
             let k = m + 1;
-            let parent: Vec<Rgb> = (0..k * k).map(|i| [1.0 + i as f64, -0.5 * i as f64, 0.25]).collect();
+            let parent: Vec<Rgb> = (0..k * k)
+                .map(|i| [1.0 + i as f64, -0.5 * i as f64, 0.25])
+                .collect();
             let mut back = vec![[0.0; 3]; k * k];
             let mut child = vec![[0.0; 3]; k * k];
             let eval = |c: &[Rgb], s: f64, t: f64, area: f64| {
@@ -122,7 +124,12 @@ mod tests {
                 for ds in 0..2 {
                     push(f, &parent, dt, ds, &mut child);
                     // the point (0.3, 0.6) of the child is ((ds + 0.3)/2, (dt + 0.6)/2) of the parent
-                    let pv = eval(&parent, (ds as f64 + 0.3) / 2.0, (dt as f64 + 0.6) / 2.0, 1.0);
+                    let pv = eval(
+                        &parent,
+                        (ds as f64 + 0.3) / 2.0,
+                        (dt as f64 + 0.6) / 2.0,
+                        1.0,
+                    );
                     let cv = eval(&child, 0.3, 0.6, 0.25);
                     assert!((pv - cv).abs() < 1e-12, "m={m}: {pv} vs {cv}");
                     pull(f, &child, dt, ds, &mut back);

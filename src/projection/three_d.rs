@@ -31,13 +31,17 @@ pub struct Geometry {
 
 impl Geometry {
     pub fn new(quads: &[Quad]) -> Geometry {
-        let quads: Vec<Parallelogram> = quads.iter().map(|q| Parallelogram::new(&q.corners)).collect();
+        let quads: Vec<Parallelogram> = quads
+            .iter()
+            .map(|q| Parallelogram::new(&q.corners))
+            .collect();
         let n = quads.len();
         let mut facing = vec![false; n * n];
         for i in 0..n {
             for j in 0..n {
                 if i != j {
-                    facing[i * n + j] = in_front(&quads[i], &quads[j]) && in_front(&quads[j], &quads[i]);
+                    facing[i * n + j] =
+                        in_front(&quads[i], &quads[j]) && in_front(&quads[j], &quads[i]);
                 }
             }
         }
@@ -92,7 +96,9 @@ impl Geometry {
 /// Whether some corner of `b` is strictly in front of `a`.
 fn in_front(a: &Parallelogram, b: &Parallelogram) -> bool {
     let tol = 1e-12 * (a.diameter() + b.diameter());
-    b.piece([0.0, 1.0], [0.0, 1.0]).iter().any(|&c| a.side(c) > tol)
+    b.piece([0.0, 1.0], [0.0, 1.0])
+        .iter()
+        .any(|&c| a.side(c) > tol)
 }
 
 /// The accuracy of the projection method's cell pairs at `q` Gauss points per direction.
@@ -111,11 +117,18 @@ fn cell(c: usize, n: usize) -> [f64; 2] {
 }
 
 /// Builds the 3D system.
-pub fn build(quads: &[Quad], disc: Discretization, progress: &dyn Progress) -> Result<System, Cancelled> {
+pub fn build(
+    quads: &[Quad],
+    disc: Discretization,
+    progress: &dyn Progress,
+) -> Result<System, Cancelled> {
     let geo = Geometry::new(quads);
     let (matrix, _rays) = matrix(&geo, disc, accuracy(disc.quadrature), progress)?;
     let k = disc.order + 1;
-    let layout = Layout::Square { cells: disc.cells, k };
+    let layout = Layout::Square {
+        cells: disc.cells,
+        k,
+    };
     let mut emission = Vec::with_capacity(quads.len() * layout.len());
     for (q, p) in quads.iter().zip(&geo.quads) {
         emission.extend(emission_coefficients(q, p.area, disc));
@@ -170,8 +183,8 @@ pub fn piece_emission(q: &Quad, area: f64, piece: Piece, k: usize, out: &mut [[f
             for a in 0..k {
                 for b in 0..k {
                     let v = wx * wy * pt[a] * ps[b] * norm;
-                    for c in 0..3 {
-                        out[a * k + b][c] += v * q.material.emission[c];
+                    for (o, e) in out[a * k + b].iter_mut().zip(q.material.emission) {
+                        *o += v * e;
                     }
                 }
             }
@@ -225,9 +238,17 @@ pub fn matrix(
                         continue;
                     }
                     block.fill(0.0);
-                    transfer::block(&geo.quads, pa, pb, Integrand::Galerkin { k }, acc, &mut block);
+                    transfer::block(
+                        &geo.quads,
+                        pa,
+                        pb,
+                        Integrand::Galerkin { k },
+                        acc,
+                        &mut block,
+                    );
                     for r in 0..kk {
-                        let dst = &mut rows[r * size + j * per + b * kk..r * size + j * per + (b + 1) * kk];
+                        let dst = &mut rows
+                            [r * size + j * per + b * kk..r * size + j * per + (b + 1) * kk];
                         for (d, s) in dst.iter_mut().zip(&block[r * kk..(r + 1) * kk]) {
                             *d = v * s;
                         }
@@ -277,7 +298,10 @@ pub fn kernel_squares(
                         s: cell(b % cells, cells),
                         t: cell(b / cells, cells),
                     };
-                    let seed = pair_seed((i * cells * cells + a) as u64, (j * cells * cells + b) as u64);
+                    let seed = pair_seed(
+                        (i * cells * cells + a) as u64,
+                        (j * cells * cells + b) as u64,
+                    );
                     let v = geo.visibility(pa, pb, seed, VISIBILITY_GRID, &mut rays);
                     if v > 0.0 {
                         let mut out = [0.0];

@@ -18,7 +18,12 @@ use image::{Rgb, RgbImage};
 use rayon::prelude::*;
 
 /// Rotated-grid sample offsets within a pixel.
-const SAMPLES: [[f64; 2]; 4] = [[0.375, 0.125], [0.875, 0.375], [0.625, 0.875], [0.125, 0.625]];
+const SAMPLES: [[f64; 2]; 4] = [
+    [0.375, 0.125],
+    [0.875, 0.375],
+    [0.625, 0.875],
+    [0.125, 0.625],
+];
 
 /// How to show the solution.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -35,11 +40,20 @@ pub fn render(job: &Job, outcome: &Outcome, width: u32, height: u32) -> RgbImage
 }
 
 /// [`render`] from the fields themselves, with options.
-pub fn render_fields(job: &Job, fields: &[Field], width: u32, height: u32, opts: Options) -> RgbImage {
+pub fn render_fields(
+    job: &Job,
+    fields: &[Field],
+    width: u32,
+    height: u32,
+    opts: Options,
+) -> RgbImage {
     let SceneKind::ThreeD(quads) = &job.scene.kind else {
         return RgbImage::new(width, height);
     };
-    let geo: Vec<Parallelogram> = quads.iter().map(|q| Parallelogram::new(&q.corners)).collect();
+    let geo: Vec<Parallelogram> = quads
+        .iter()
+        .map(|q| Parallelogram::new(&q.corners))
+        .collect();
     let bvh = Bvh::new(&geo);
     let camera = job.output.camera.unwrap_or_else(|| frame(&geo));
     let view = View::new(&camera, width, height);
@@ -65,7 +79,17 @@ pub fn render_fields(job: &Job, fields: &[Field], width: u32, height: u32, opts:
                 let mut lit = false;
                 for o in SAMPLES {
                     let d = view.ray(x as f64 + o[0], y as f64 + o[1]);
-                    let (v, l) = shade(bvh, geo, fields, smooth, lights, view.eye, d, opts, view.pixel_angle);
+                    let (v, l) = shade(
+                        bvh,
+                        geo,
+                        fields,
+                        smooth,
+                        lights,
+                        view.eye,
+                        d,
+                        opts,
+                        view.pixel_angle,
+                    );
                     lit |= l;
                     (0..3).for_each(|c| sum[c] += v[c] / SAMPLES.len() as f64);
                 }
@@ -158,7 +182,10 @@ impl View {
     fn ray(&self, x: f64, y: f64) -> V3 {
         let u = (x - 0.5 * self.width) * self.pixel;
         let v = (0.5 * self.height - y) * self.pixel;
-        normalize(add(self.forward, add(scale(self.right, u), scale(self.up, v))))
+        normalize(add(
+            self.forward,
+            add(scale(self.right, u), scale(self.up, v)),
+        ))
     }
 }
 
@@ -193,12 +220,10 @@ impl Smooth {
         let (i, fs) = coord(s);
         let (j, ft) = coord(t);
         let at = |a: usize, b: usize| self.values[b * n + a];
-        let mut out = [0.0; 3];
-        for c in 0..3 {
-            out[c] = (1.0 - ft) * ((1.0 - fs) * at(i, j)[c] + fs * at(i + 1, j)[c])
-                + ft * ((1.0 - fs) * at(i, j + 1)[c] + fs * at(i + 1, j + 1)[c]);
-        }
-        out
+        std::array::from_fn(|c| {
+            (1.0 - ft) * ((1.0 - fs) * at(i, j)[c] + fs * at(i + 1, j)[c])
+                + ft * ((1.0 - fs) * at(i, j + 1)[c] + fs * at(i + 1, j + 1)[c])
+        })
     }
 }
 
@@ -242,7 +267,8 @@ fn shade(
         let leaf = field.leaf_at(s, t);
         let foot = hit.dist * pixel_angle * 0.75;
         let (ls, lt) = (norm(q.e1), norm(q.e3));
-        let edge = ((s - leaf.s[0]).min(leaf.s[1] - s) * ls).min((t - leaf.t[0]).min(leaf.t[1] - t) * lt);
+        let edge =
+            ((s - leaf.s[0]).min(leaf.s[1] - s) * ls).min((t - leaf.t[0]).min(leaf.t[1] - t) * lt);
         if edge < foot {
             l = l.map(|v| v * 0.35);
         }
@@ -270,7 +296,11 @@ fn auto_exposure(radiance: &[([f64; 3], bool)]) -> f64 {
 fn encode(v: [f64; 3], white: f64) -> Rgb<u8> {
     let f = |x: f64| {
         let x = (x / white).clamp(0.0, 1.0);
-        let s = if x <= 0.0031308 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 };
+        let s = if x <= 0.0031308 {
+            12.92 * x
+        } else {
+            1.055 * x.powf(1.0 / 2.4) - 0.055
+        };
         (s * 255.0 + 0.5) as u8
     };
     Rgb([f(v[0]), f(v[1]), f(v[2])])
