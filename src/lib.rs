@@ -9,6 +9,12 @@
 //! matrix with the kernels of [`kernel`] and the rules of [`quadrature`] → [`compress`] turns it
 //! into the wavelet basis of [`basis`] and thresholds it → [`solve`] iterates → [`metrics`]
 //! measures eq. (5) and (6) → [`job`] gathers the result.
+//!
+//! 3D scenes: [`space`] parametrises the parallelograms, [`bvh`] and [`visibility3d`] give the
+//! visibility term of eq. (3), [`transfer`] integrates the Galerkin blocks between pieces of
+//! them, [`projection::three_d`] assembles the projection method's matrix, [`hierarchy`] solves
+//! by hierarchical wavelet radiosity (Gortler et al. 1993; Hanrahan et al. 1991), and
+//! [`render::camera`] makes the images.
 
 pub mod basis;
 pub mod bvh;
