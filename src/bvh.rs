@@ -5,7 +5,7 @@
 //! axis-aligned boxes tested with the slab method (Kay and Kajiya 1986); leaves hold up to two
 //! parallelograms, intersected through their dual basis.
 
-use crate::space::{cross, dot, sub, Parallelogram, V3};
+use crate::space::{dot, sub, Parallelogram, V3};
 
 #[derive(Debug, Clone, Copy)]
 struct Node {
@@ -127,16 +127,37 @@ impl Bvh {
         best
     }
 
-    /// Whether some surface other than `skip` crosses the open segment (a, b).
+    /// Whether some surface other than `skip` crosses the open segment (a, b): any hit ends
+    /// the walk.
     pub fn occluded(&self, a: V3, b: V3, skip: [usize; 2]) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
         let d = sub(b, a);
-        let mut found = false;
-        let mut t_max = 1.0 - 1e-9;
-        self.walk(a, d, 1e-9, &mut t_max, skip, &mut |_| {
-            found = true;
-            true
-        });
-        found
+        let (t_min, t_max) = (1e-9, 1.0 - 1e-9);
+        let inv = [1.0 / d[0], 1.0 / d[1], 1.0 / d[2]];
+        let mut stack = [0u32; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if !slab(node, a, inv, t_min, t_max) {
+                continue;
+            }
+            if node.count == 0 {
+                stack[top] = node.first;
+                stack[top + 1] = node.right;
+                top += 2;
+                continue;
+            }
+            for &i in &self.order[node.first as usize..(node.first + node.count) as usize] {
+                let i = i as usize;
+                if i != skip[0] && i != skip[1] && crosses(&self.quads[i], a, d, t_min, t_max) {
+                    return true;
+                }
+            }
+        }
+        false
     }
 
     /// Visits the nodes along the ray; `on_hit` returns whether to stop.
@@ -202,6 +223,34 @@ fn slab(n: &Node, o: V3, inv: V3, t_min: f64, t_max: f64) -> bool {
     lo <= hi
 }
 
+/// Whether the ray o + t d meets the parallelogram for some t in (t_min, t_max).
+#[inline(always)]
+fn crosses(q: &Parallelogram, o: V3, d: V3, t_min: f64, t_max: f64) -> bool {
+    let den = dot(d, q.n);
+    let w = sub(q.p0, o);
+    let num = dot(w, q.n);
+    // t = num / den in (t_min, t_max), without the division
+    let inside = if den > 0.0 {
+        num > t_min * den && num < t_max * den
+    } else if den < 0.0 {
+        num < t_min * den && num > t_max * den
+    } else {
+        false
+    };
+    if !inside {
+        return false;
+    }
+    let t = num / den;
+    let p = [
+        o[0] + t * d[0] - q.p0[0],
+        o[1] + t * d[1] - q.p0[1],
+        o[2] + t * d[2] - q.p0[2],
+    ];
+    let s = dot(p, q.u);
+    let u = dot(p, q.v);
+    (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&u)
+}
+
 /// Ray o + t d against a parallelogram (either side), t in (t_min, t_max).
 #[inline(always)]
 fn intersect(q: &Parallelogram, i: usize, o: V3, d: V3, t_min: f64, t_max: f64) -> Option<Hit> {
@@ -221,11 +270,6 @@ fn intersect(q: &Parallelogram, i: usize, o: V3, d: V3, t_min: f64, t_max: f64) 
         s,
         t: u,
     })
-}
-
-/// Axis of the plane through a, b, c (not normalised).
-pub fn plane_normal(a: V3, b: V3, c: V3) -> V3 {
-    cross(sub(b, a), sub(c, a))
 }
 
 #[cfg(test)]
