@@ -4,9 +4,11 @@
 //!
 //! - Anti-aliasing: four samples per pixel on a rotated grid (fixed offsets, so the image is
 //!   deterministic).
-//! - Order-0 solutions are shown smooth by default, as radiosity renderers do (Cohen and Wallace,
+//! - Solutions are shown smooth by default, as radiosity renderers do (Cohen and Wallace,
 //!   "Radiosity and Realistic Image Synthesis", §9.2): B is interpolated bilinearly between the
-//!   centres of the finest cells; [`Options::raw`] shows the elements as they are.
+//!   centres of the finest cells, which for order 0 replaces the flat patches and for higher
+//!   orders hides the jumps between elements of different levels; [`Options::raw`] shows the
+//!   elements as they are.
 //! - The back of a surface is black (one-sided surfaces); missed rays are black.
 
 use crate::bvh::Bvh;
@@ -28,7 +30,7 @@ const SAMPLES: [[f64; 2]; 4] = [
 /// How to show the solution.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Options {
-    /// Show order-0 elements as flat patches instead of interpolating between them.
+    /// Show the elements as they are (flat patches at order 0) instead of interpolating.
     pub raw: bool,
     /// Draw the leaves' outlines.
     pub mesh: bool,
@@ -59,7 +61,7 @@ pub fn render_fields(
     let view = View::new(&camera, width, height);
     let smooth: Vec<Option<Smooth>> = fields
         .iter()
-        .map(|f| (f.order == 0 && !opts.raw).then(|| Smooth::new(f)))
+        .map(|f| (!opts.raw).then(|| Smooth::new(f)))
         .collect();
     let (w, h) = (width as usize, height as usize);
     // radiance per sample, rows in parallel
@@ -189,7 +191,7 @@ impl View {
     }
 }
 
-/// B interpolated between the centres of the finest cells of an order-0 field.
+/// B interpolated between the centres of the finest cells of a field.
 struct Smooth {
     res: usize,
     values: Vec<[f64; 3]>,
