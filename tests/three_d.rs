@@ -245,8 +245,47 @@ fn cornell_box_cell_means_converge_as_epsilon_shrinks() {
     };
     let coarse = gap(&cells(4e-3));
     let default = gap(&cells(1e-3));
-    eprintln!("cell-mean gap to the ε = 2.5e-4 solution: ε = 4e-3: {coarse:.4}, ε = 1e-3: {default:.4}");
+    eprintln!(
+        "cell-mean gap to the ε = 2.5e-4 solution: ε = 4e-3: {coarse:.4}, ε = 1e-3: {default:.4}"
+    );
     assert!(default < 0.6 * coarse, "{coarse} {default}");
     // the measured gap of the default document: 4.0 % (12.5 % at ε = 4e-3)
     assert!(default < 0.08, "{default}");
+}
+
+/// Cancels once asked `after` times.
+struct CancelAfter {
+    asked: std::sync::atomic::AtomicUsize,
+    after: usize,
+}
+
+impl wavrad::progress::Progress for CancelAfter {
+    fn report(&self, _: wavrad::progress::Phase, _: f64) {}
+    fn cancelled(&self) -> bool {
+        self.asked
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+            >= self.after
+    }
+}
+
+#[test]
+fn a_cancel_stops_both_methods_quickly() {
+    for method in ["hierarchical", "projection"] {
+        let mut doc = scene_file("cornell-box");
+        doc["solver"]["method"] = json!(method);
+        doc["solver"]["resolution"] = json!(8);
+        let j = job(doc);
+        let progress = CancelAfter {
+            asked: Default::default(),
+            after: 3,
+        };
+        let t = std::time::Instant::now();
+        let r = job::run(&j, &progress);
+        assert!(matches!(r, Err(job::JobError::Cancelled)), "{method}");
+        assert!(
+            t.elapsed().as_secs_f64() < 1.0,
+            "{method}: {:?}",
+            t.elapsed()
+        );
+    }
 }
