@@ -169,7 +169,7 @@ pub fn solve_job(
         (SceneKind::Fredholm(_), Method::Hierarchical) => Err(JobError::Unsupported(
             "fredholm scenes with the hierarchical method are not available in this build".into(),
         )),
-        (_, Method::Hierarchical) => Ok(crate::hierarchy::solve(job, order, resolution, progress)?),
+        (_, Method::Hierarchical) => Ok(crate::hierarchy::three_d::solve(job, order, resolution, progress)?),
         (SceneKind::ThreeD(quads), Method::Projection) => {
             let disc = Discretization {
                 order,
