@@ -15,8 +15,8 @@ use crate::quadrature::Rule;
 use crate::space::{cross, dot, norm, point_quad, quad_quad, sub, Parallelogram, V3};
 use crate::visibility3d::Piece;
 
-/// Largest k = m + 1 and Gauss rule handled on the stack.
-pub const MAX_K: usize = 8;
+/// Largest k = m + 1 (the document allows m ≤ 8) and Gauss rule handled on the stack.
+pub const MAX_K: usize = 9;
 const MAX_Q: usize = 16;
 
 /// How hard to work.
