@@ -47,7 +47,7 @@ impl Accuracy {
         Accuracy {
             q_min,
             digits: 6.0,
-            outer_depth: 4,
+            outer_depth: 3,
             inner_depth: 0,
         }
     }
@@ -213,8 +213,8 @@ impl Ctx<'_> {
     fn far(&self, ra: Rect, rb: Rect, q: usize, out: &mut [f64]) {
         let kk = self.k * self.k;
         let rule = Rule::gauss(q);
-        let mut phi_b = [0.0; MAX_Q * MAX_Q * MAX_K * MAX_K];
-        let mut ys = [[0.0; 3]; MAX_Q * MAX_Q];
+        let mut phi_b = vec![0.0; q * q * kk];
+        let mut ys = vec![[0.0; 3]; q * q];
         let mut n = 0;
         for (t, wt) in rule.mapped(rb.t[0], rb.t[1]) {
             for (s, ws) in rule.mapped(rb.s[0], rb.s[1]) {
