@@ -300,7 +300,12 @@ fn same_document_same_result_and_high_orders() {
     assert_eq!(a.result.hierarchical, b.result.hierarchical);
     // the highest order a document may ask for, on the furnace
     let mut doc = furnace(1.0, 0.5);
-    doc["solver"] = json!({ "method": "hierarchical", "order": 8, "resolution": 1, "tolerance": 1e-9 });
+    doc["solver"] =
+        json!({ "method": "hierarchical", "order": 8, "resolution": 1, "tolerance": 1e-9 });
     let out = run(doc);
-    assert!((out.result.surfaces[0].mean[0] - 2.0).abs() < 2e-3, "{:?}", out.result.surfaces[0].mean);
+    assert!(
+        (out.result.surfaces[0].mean[0] - 2.0).abs() < 2e-3,
+        "{:?}",
+        out.result.surfaces[0].mean
+    );
 }
