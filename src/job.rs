@@ -70,8 +70,8 @@ pub struct Solution {
     pub timings: BTreeMap<String, f64>,
     /// Σ K_ij² of the kept entries per (row surface, column surface), `S × S`, for eq. (5).
     pub kept_squares: Vec<f64>,
-    /// Kernel evaluations the matrix (or the links) took.
-    pub kernel_evaluations: u64,
+    /// Kernel evaluations the matrix (or the links) took, where they are counted.
+    pub kernel_evaluations: Option<u64>,
 }
 
 /// Runs a job.
@@ -211,12 +211,33 @@ pub fn solve_job(
             sol.timings.insert("metrics".into(), ms(t));
             Ok(sol)
         }
-        (SceneKind::ThreeD(_), _) | (_, Method::Hierarchical) => {
-            Err(JobError::Unsupported(format!(
-                "{} scenes with the {:?} method are not available in this build",
-                job.scene.kind.name(),
-                job.solver.method
-            )))
+        (SceneKind::Fredholm(_), Method::Hierarchical) => Err(JobError::Unsupported(
+            "the hierarchical method solves flatland and 3d scenes, not fredholm equations".into(),
+        )),
+        (_, Method::Hierarchical) => Ok(crate::hierarchy::three_d::solve(
+            job, order, resolution, progress,
+        )?),
+        (SceneKind::ThreeD(quads), Method::Projection) => {
+            let disc = Discretization {
+                order,
+                cells: resolution,
+                quadrature: if order == job.solver.order {
+                    job.solver.quadrature
+                } else {
+                    job.solver.quadrature.max(order + 2)
+                },
+            };
+            let t = Instant::now();
+            let system = projection::three_d::build(quads, disc, progress)?;
+            let build_ms = ms(t);
+            let mut sol = projection_solve(system, job, keep, progress)?;
+            sol.timings.insert("projection".into(), build_ms);
+            let t = Instant::now();
+            let (err, left_out) = kernel_error_3d(quads, disc, &sol, progress)?;
+            sol.kernel_error = err;
+            sol.left_out = left_out;
+            sol.timings.insert("metrics".into(), ms(t));
+            Ok(sol)
         }
         _ => {
             let disc = Discretization {
@@ -390,6 +411,40 @@ fn kernel_error_1d(
         }
         SceneKind::ThreeD(_) => Ok((sol.kernel_error, vec![])),
     }
+}
+
+/// Eq. (5) and the surface pairs it left out.
+type KernelError3d = (Option<f64>, Vec<(usize, usize)>);
+
+/// Eq. (5) for 3D scenes over the pairs of surfaces that do not touch.
+fn kernel_error_3d(
+    quads: &[crate::scene::Quad],
+    disc: Discretization,
+    sol: &Solution,
+    progress: &dyn Progress,
+) -> Result<KernelError3d, Cancelled> {
+    progress.check()?;
+    let geo = projection::three_d::Geometry::new(quads);
+    let touching = geo.touching();
+    let touch = |i: usize, j: usize| touching.contains(&(i.min(j), i.max(j)));
+    let k2 = projection::three_d::kernel_squares(
+        &geo,
+        disc.cells.clamp(2, 4),
+        disc.quadrature + 1,
+        touch,
+        progress,
+    )?;
+    let s = quads.len();
+    let mut kept = 0.0;
+    for i in 0..s {
+        for j in 0..s {
+            if i != j && !touch(i, j) {
+                kept += sol.kept_squares[i * s + j];
+            }
+        }
+    }
+    let total: f64 = k2.iter().sum();
+    Ok((metrics::kernel_relative_error(total, kept), touching))
 }
 
 /// Per-surface fields from scaling-basis coefficients: N = φ_p(ŝ)[φ_q(t̂)] / √(h^d · measure).

@@ -9,18 +9,22 @@
 //! matrix with the kernels of [`kernel`] and the rules of [`quadrature`] → [`compress`] turns it
 //! into the wavelet basis of [`basis`] and thresholds it → [`solve`] iterates → [`metrics`]
 //! measures eq. (5) and (6) → [`job`] gathers the result.
+//!
+//! 3D scenes: [`space`] parametrises the parallelograms, [`bvh`] and [`visibility3d`] give the
+//! visibility term of eq. (3), [`transfer`] integrates the Galerkin blocks between pieces of
+//! them, [`projection::three_d`] assembles the projection method's matrix, [`hierarchy`] solves
+//! by hierarchical wavelet radiosity (Gortler et al. 1993; Hanrahan et al. 1991), and
+//! [`render::camera`] makes the images.
 
 // Numerical loops index several arrays by the same subscript, as the papers' formulas do.
 #![allow(clippy::needless_range_loop)]
 
 pub mod basis;
+pub mod bvh;
 pub mod compress;
 pub mod field;
 pub mod geometry;
-pub mod hierarchy {
-    //! Hierarchical wavelet radiosity: elements, links, the refinement oracle, push–pull.
-    pub mod flatland;
-}
+pub mod hierarchy;
 pub mod job;
 pub mod kernel;
 pub mod metrics;
@@ -32,4 +36,7 @@ pub mod result;
 pub mod scene;
 pub mod server;
 pub mod solve;
+pub mod space;
+pub mod transfer;
 pub mod visibility;
+pub mod visibility3d;

@@ -668,7 +668,7 @@ pub fn solve(
         hierarchy: Some(stats),
         timings,
         kept_squares,
-        kernel_evaluations: evaluations,
+        kernel_evaluations: Some(evaluations),
     })
 }
 

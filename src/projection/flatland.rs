@@ -141,7 +141,7 @@ pub fn build(
         reflectance: segments.iter().map(|s| s.material.reflectance).collect(),
         measure: geo.lines.iter().map(|l| l.len).collect(),
         touching: geo.touching(),
-        kernel_evaluations,
+        kernel_evaluations: Some(kernel_evaluations),
     })
 }
 

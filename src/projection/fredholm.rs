@@ -86,6 +86,6 @@ pub fn build(
         reflectance: vec![[1.0; 3]],
         measure: vec![len],
         touching: Vec::new(),
-        kernel_evaluations: (n * n * q * q) as u64,
+        kernel_evaluations: Some((n * n * q * q) as u64),
     })
 }

@@ -7,6 +7,7 @@
 
 pub mod flatland;
 pub mod fredholm;
+pub mod three_d;
 
 use crate::progress::{Cancelled, Progress};
 use crate::scene::{Job, Rgb, SceneKind};
@@ -95,8 +96,8 @@ pub struct System {
     pub measure: Vec<f64>,
     /// Pairs of surfaces (i < j) that touch: ∫∫K² diverges there, so eq. (5) leaves them out.
     pub touching: Vec<(usize, usize)>,
-    /// Kernel evaluations the matrix took.
-    pub kernel_evaluations: u64,
+    /// Kernel evaluations the matrix took, where the integrator counts them.
+    pub kernel_evaluations: Option<u64>,
 }
 
 impl System {

@@ -5,22 +5,16 @@
 //! deterministic: the same document gives byte-identical PNGs (no timings, no randomness, a
 //! font embedded in the binary).
 //!
-//! 3D scenes are drawn from the camera by a renderer registered in [`CAMERA`]; until one is
-//! registered, a 3D `image.png` is a grid of the per-surface images.
+//! 3D scenes are drawn from the camera by [`camera`].
 
+pub mod camera;
 pub mod plot;
 
 use crate::field::Field;
 use crate::job::Outcome;
 use crate::scene::{Exposure, Job, SceneKind};
 use image::{ImageEncoder, Rgb, RgbImage};
-use std::sync::OnceLock;
-
-/// The camera renderer for 3D scenes: `(job, outcome, width, height) -> image`.
-pub type CameraFn = fn(&Job, &Outcome, u32, u32) -> RgbImage;
-
-/// Set once at start-up by whoever provides the 3D camera renderer.
-pub static CAMERA: OnceLock<CameraFn> = OnceLock::new();
+use rayon::prelude::*;
 
 /// Width and height of one per-surface image.
 const STRIP: (u32, u32) = (512, 48);
@@ -57,34 +51,41 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
     let spec = job.output.image;
     let names = job.surface_names();
     let white = white_point(job, &outcome.fields);
-    let surface_images: Vec<RgbImage> = outcome
-        .fields
-        .iter()
-        .map(|f| surface_image(f, white, surface_size(f)))
-        .collect();
-    let main = match &job.scene.kind {
-        SceneKind::ThreeD(_) => match CAMERA.get() {
-            Some(camera) => camera(job, outcome, spec.width, spec.height),
-            None => plot::surface_grid(&names, &outcome.fields, white, spec.width, spec.height),
-        },
-        _ => plot::radiosity(job, &names, &outcome.fields, spec.width, spec.height),
+    // Independent images, drawn in parallel; each is deterministic on its own.
+    let main = || {
+        let img = match &job.scene.kind {
+            SceneKind::ThreeD(_) => camera::render(job, outcome, spec.width, spec.height),
+            _ => plot::radiosity(job, &names, &outcome.fields, spec.width, spec.height),
+        };
+        encode_png(&img)
     };
-    let sparsity = match &outcome.picture {
-        Some(p) => plot::sparsity(p),
-        None => plot::message(
-            640,
-            560,
-            "No kernel matrix: this method builds links, not a matrix",
-        ),
+    let sparsity = || {
+        encode_png(&match &outcome.picture {
+            Some(p) => plot::sparsity(p),
+            None => plot::message(
+                640,
+                560,
+                "No kernel matrix: this method builds links, not a matrix",
+            ),
+        })
     };
+    let coefficients = || encode_png(&plot::coefficients(&outcome.result.coefficients));
+    let surfaces = || -> Vec<Vec<u8>> {
+        outcome
+            .fields
+            .par_iter()
+            .map(|f| encode_png(&surface_image(f, white, surface_size(f))))
+            .collect()
+    };
+    let ((image, sparsity), (coefficients, surfaces)) = rayon::join(
+        || rayon::join(main, sparsity),
+        || rayon::join(coefficients, surfaces),
+    );
     Images {
-        image: encode_png(&main),
-        sparsity: encode_png(&sparsity),
-        coefficients: encode_png(&plot::coefficients(&outcome.result.coefficients)),
-        surfaces: names
-            .into_iter()
-            .zip(surface_images.iter().map(encode_png))
-            .collect(),
+        image,
+        sparsity,
+        coefficients,
+        surfaces: names.into_iter().zip(surfaces).collect(),
     }
 }
 
@@ -164,4 +165,50 @@ pub fn encode_png(img: &RgbImage) -> Vec<u8> {
     )
     .expect("encoding a PNG into memory cannot fail");
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn surface_images_map_b_to_colour_with_t_upwards() {
+        // B = 1 on the lower half (t < 1/2), 0 above.
+        let mut local = vec![[0.0; 3]; 4];
+        local[0] = [1.0; 3];
+        local[1] = [1.0; 3];
+        let f = Field::uniform_square(0, 2, &local);
+        let img = surface_image(&f, 1.0, (10, 10));
+        assert_eq!(img.get_pixel(5, 9).0, [255, 255, 255]);
+        assert_eq!(img.get_pixel(5, 0).0, [0, 0, 0]);
+        assert_eq!(tone([0.25, 2.0, -1.0], 1.0).0, [136, 255, 0]);
+    }
+
+    #[test]
+    fn charts_are_deterministic() {
+        let c = crate::result::Coefficients {
+            basis_size: 4,
+            matrix_entries: 16,
+            kept_entries: 8,
+            sparsity_ratio: 0.5,
+            cut: 1e-3,
+            sorted_magnitudes: vec![1.0, 0.1, 1e-3, 1e-6, 0.0],
+            sorted_ranks: vec![0, 4, 8, 12, 15],
+        };
+        let a = encode_png(&plot::coefficients(&c));
+        let b = encode_png(&plot::coefficients(&c));
+        assert_eq!(a, b);
+        let p = crate::compress::MagnitudePicture {
+            side: 4,
+            values: (0..16).map(|i| 10f64.powi(-(i % 5))).collect(),
+            block: 1,
+            cut: 1e-3,
+        };
+        let s = plot::sparsity(&p);
+        assert_eq!(encode_png(&s), encode_png(&plot::sparsity(&p)));
+        // Entries below the cut are white; the largest is the top of the colour map.
+        let colors: std::collections::HashSet<[u8; 3]> = s.pixels().map(|p| p.0).collect();
+        let top = plot::viridis(1.0);
+        assert!(colors.contains(&[top.0, top.1, top.2]));
+    }
 }

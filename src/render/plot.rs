@@ -388,38 +388,6 @@ pub fn coefficients(c: &Coefficients) -> RgbImage {
     .0
 }
 
-/// A 3D `image.png` without a camera renderer: the per-surface images in a labelled grid.
-pub fn surface_grid(names: &[String], fields: &[Field], white: f64, w: u32, h: u32) -> RgbImage {
-    let n = fields.len().max(1) as u32;
-    let cols = (n as f64).sqrt().ceil() as u32;
-    let rows = n.div_ceil(cols);
-    let (cw, ch) = (w / cols, h / rows);
-    let label = 18u32.min(ch / 3);
-    let mut img = RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
-    for (i, f) in fields.iter().enumerate() {
-        let (cx, cy) = ((i as u32 % cols) * cw, (i as u32 / cols) * ch);
-        let size = (
-            cw.saturating_sub(4).max(1),
-            ch.saturating_sub(label + 4).max(1),
-        );
-        let tile = super::surface_image(f, white, size);
-        image::imageops::replace(&mut img, &tile, (cx + 2) as i64, (cy + label + 2) as i64);
-    }
-    let mut buf = img.into_raw();
-    draw_on(&mut buf, w, h, |root| {
-        for (i, name) in names.iter().enumerate() {
-            let (cx, cy) = ((i as u32 % cols) * cw, (i as u32 / cols) * ch);
-            root.draw(&Text::new(
-                name.as_str(),
-                (cx as i32 + 4, cy as i32 + 2),
-                (SANS, label.max(8) as f64 - 4.0).into_font(),
-            ))?;
-        }
-        Ok(())
-    });
-    RgbImage::from_raw(w, h, buf).expect("buffer of w × h × 3")
-}
-
 /// A white image with one line of text (for an artifact that has nothing to show).
 pub fn message(w: u32, h: u32, text: &str) -> RgbImage {
     canvas(w, h, |root| {

@@ -1,0 +1,97 @@
+//! The 3D speed goals: the Cornell box by the hierarchical method (solve, and solve + a
+//! 512 × 512 image), visibility rays through the BVH, and projection against hierarchical on
+//! the parallel plates as the resolution grows. Figures in `benches/README.md`.
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use rayon::prelude::*;
+use std::hint::black_box;
+use wavrad::bvh::Bvh;
+use wavrad::job;
+use wavrad::progress::Silent;
+use wavrad::render::camera;
+use wavrad::scene::{parse_document, parse_value, Job, Limits, SceneKind};
+use wavrad::space::Parallelogram;
+use wavrad::visibility3d::SplitMix;
+
+fn scene(name: &str) -> String {
+    std::fs::read_to_string(format!("{}/scenes/{name}.json", env!("CARGO_MANIFEST_DIR")))
+        .expect("scene")
+}
+
+fn cornell() -> Job {
+    parse_document(&scene("cornell-box"), &Limits::default()).expect("valid")
+}
+
+fn cornell_box(c: &mut Criterion) {
+    let j = cornell();
+    let mut g = c.benchmark_group("cornell-box");
+    g.sample_size(10);
+    g.bench_function("hierarchical solve", |b| {
+        b.iter(|| black_box(job::run(&j, &Silent).expect("solves")))
+    });
+    g.bench_function("hierarchical solve + 512x512 image", |b| {
+        b.iter(|| {
+            let out = job::run(&j, &Silent).expect("solves");
+            black_box(camera::render(&j, &out, 512, 512))
+        })
+    });
+    g.finish();
+}
+
+fn rays(c: &mut Criterion) {
+    let j = cornell();
+    let SceneKind::ThreeD(quads) = &j.scene.kind else {
+        unreachable!()
+    };
+    let geo: Vec<Parallelogram> = quads
+        .iter()
+        .map(|q| Parallelogram::new(&q.corners))
+        .collect();
+    let bvh = Bvh::new(&geo);
+    // segments between random points of random pairs of surfaces, as the visibility tests cast
+    let mut rng = SplitMix(7);
+    let n = 1 << 20;
+    let segs: Vec<([f64; 3], [f64; 3], [usize; 2])> = (0..n)
+        .map(|_| {
+            let i = (rng.next_u64() % geo.len() as u64) as usize;
+            let k = (rng.next_u64() % geo.len() as u64) as usize;
+            let a = geo[i].at(rng.next_f64(), rng.next_f64());
+            let b = geo[k].at(rng.next_f64(), rng.next_f64());
+            (a, b, [i, k])
+        })
+        .collect();
+    let mut g = c.benchmark_group("visibility");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(n as u64));
+    g.bench_function("rays through the BVH (cornell box, all cores)", |b| {
+        b.iter(|| {
+            segs.par_iter()
+                .filter(|(a, e, skip)| bvh.occluded(*a, *e, *skip))
+                .count()
+        })
+    });
+    g.finish();
+}
+
+fn growth(c: &mut Criterion) {
+    let base: serde_json::Value = serde_json::from_str(&scene("plates-3d")).expect("json");
+    let mut g = c.benchmark_group("plates-3d growth");
+    g.sample_size(10);
+    for n in [8usize, 16, 32] {
+        for method in ["projection", "hierarchical"] {
+            if method == "projection" && n > 16 {
+                continue;
+            }
+            let mut doc = base.clone();
+            doc["solver"] = serde_json::json!({ "method": method, "order": 0, "resolution": n, "epsilon": 1e-3 });
+            let j = parse_value(&doc, &Limits::default()).expect("valid");
+            g.bench_function(format!("{method} n={n}"), |b| {
+                b.iter(|| black_box(job::run(&j, &Silent).expect("solves")))
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, cornell_box, rays, growth);
+criterion_main!(benches);

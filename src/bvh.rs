@@ -1,0 +1,313 @@
+//! A bounding volume hierarchy over the parallelograms of a 3D scene, for the visibility term
+//! V(x, y) of the slides' eq. (3) and for the camera's primary rays.
+//!
+//! Built top-down by median splits along the longest axis of the centroid bounds; nodes are
+//! axis-aligned boxes tested with the slab method (Kay and Kajiya 1986); leaves hold up to two
+//! parallelograms, intersected through their dual basis.
+
+use crate::space::{dot, sub, Parallelogram, V3};
+
+#[derive(Debug, Clone, Copy)]
+struct Node {
+    lo: V3,
+    hi: V3,
+    /// Leaf: first index into `order` and count; inner: left child index (right = left + 1 is
+    /// not assumed: `right` holds it) and count 0.
+    first: u32,
+    count: u32,
+    right: u32,
+}
+
+/// The closest hit of a ray.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    pub surface: usize,
+    pub dist: f64,
+    pub s: f64,
+    pub t: f64,
+}
+
+#[derive(Debug, Clone)]
+pub struct Bvh {
+    quads: Vec<Parallelogram>,
+    nodes: Vec<Node>,
+    order: Vec<u32>,
+}
+
+impl Bvh {
+    pub fn new(quads: &[Parallelogram]) -> Bvh {
+        let mut bvh = Bvh {
+            quads: quads.to_vec(),
+            nodes: Vec::new(),
+            order: (0..quads.len() as u32).collect(),
+        };
+        if !quads.is_empty() {
+            bvh.build(0, quads.len());
+        }
+        bvh
+    }
+
+    pub fn quads(&self) -> &[Parallelogram] {
+        &self.quads
+    }
+
+    fn bounds(&self, i: u32) -> (V3, V3) {
+        let q = &self.quads[i as usize];
+        let mut lo = q.p0;
+        let mut hi = q.p0;
+        for c in [q.at(1.0, 0.0), q.at(1.0, 1.0), q.at(0.0, 1.0)] {
+            for a in 0..3 {
+                lo[a] = lo[a].min(c[a]);
+                hi[a] = hi[a].max(c[a]);
+            }
+        }
+        (lo, hi)
+    }
+
+    fn build(&mut self, first: usize, count: usize) -> u32 {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        let mut clo = [f64::INFINITY; 3];
+        let mut chi = [f64::NEG_INFINITY; 3];
+        for &i in &self.order[first..first + count] {
+            let (l, h) = self.bounds(i);
+            for a in 0..3 {
+                lo[a] = lo[a].min(l[a]);
+                hi[a] = hi[a].max(h[a]);
+                let c = 0.5 * (l[a] + h[a]);
+                clo[a] = clo[a].min(c);
+                chi[a] = chi[a].max(c);
+            }
+        }
+        // pad degenerate (planar) boxes so that the slab test never divides 0 by 0 into NaN
+        for a in 0..3 {
+            let pad = 1e-9 * (hi[a] - lo[a]).abs().max(1e-12);
+            lo[a] -= pad;
+            hi[a] += pad;
+        }
+        let me = self.nodes.len() as u32;
+        self.nodes.push(Node {
+            lo,
+            hi,
+            first: first as u32,
+            count: count as u32,
+            right: 0,
+        });
+        if count <= 2 {
+            return me;
+        }
+        let axis = (0..3)
+            .max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b])))
+            .unwrap_or(0);
+        let key = |i: &u32| {
+            let (l, h) = self.bounds(*i);
+            l[axis] + h[axis]
+        };
+        let mut slice: Vec<u32> = self.order[first..first + count].to_vec();
+        slice.sort_by(|a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+        self.order[first..first + count].copy_from_slice(&slice);
+        let half = count / 2;
+        let left = self.build(first, half);
+        let right = self.build(first + half, count - half);
+        let node = &mut self.nodes[me as usize];
+        node.first = left;
+        node.count = 0;
+        node.right = right;
+        me
+    }
+
+    /// The nearest hit with distance in (t_min, t_max) along `o + t d`, skipping `skip`.
+    pub fn first_hit(&self, o: V3, d: V3, t_min: f64, t_max: f64, skip: [usize; 2]) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        let mut t_max = t_max;
+        self.walk(o, d, t_min, &mut t_max, skip, &mut |hit| {
+            best = Some(hit);
+            false
+        });
+        best
+    }
+
+    /// Whether some surface other than `skip` crosses the open segment (a, b): any hit ends
+    /// the walk.
+    pub fn occluded(&self, a: V3, b: V3, skip: [usize; 2]) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let d = sub(b, a);
+        let (t_min, t_max) = (1e-9, 1.0 - 1e-9);
+        let inv = [1.0 / d[0], 1.0 / d[1], 1.0 / d[2]];
+        let mut stack = [0u32; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if !slab(node, a, inv, t_min, t_max) {
+                continue;
+            }
+            if node.count == 0 {
+                stack[top] = node.first;
+                stack[top + 1] = node.right;
+                top += 2;
+                continue;
+            }
+            for &i in &self.order[node.first as usize..(node.first + node.count) as usize] {
+                let i = i as usize;
+                if i != skip[0] && i != skip[1] && crosses(&self.quads[i], a, d, t_min, t_max) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Visits the nodes along the ray; `on_hit` returns whether to stop.
+    fn walk(
+        &self,
+        o: V3,
+        d: V3,
+        t_min: f64,
+        t_max: &mut f64,
+        skip: [usize; 2],
+        on_hit: &mut dyn FnMut(Hit) -> bool,
+    ) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let inv = [1.0 / d[0], 1.0 / d[1], 1.0 / d[2]];
+        let mut stack = [0u32; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = self.nodes[stack[top] as usize];
+            if !slab(&node, o, inv, t_min, *t_max) {
+                continue;
+            }
+            if node.count == 0 {
+                stack[top] = node.first;
+                stack[top + 1] = node.right;
+                top += 2;
+                continue;
+            }
+            for &i in &self.order[node.first as usize..(node.first + node.count) as usize] {
+                let i = i as usize;
+                if i == skip[0] || i == skip[1] {
+                    continue;
+                }
+                if let Some(hit) = intersect(&self.quads[i], i, o, d, t_min, *t_max) {
+                    *t_max = hit.dist;
+                    if on_hit(hit) {
+                        return;
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[inline(always)]
+fn slab(n: &Node, o: V3, inv: V3, t_min: f64, t_max: f64) -> bool {
+    let mut lo = t_min;
+    let mut hi = t_max;
+    for a in 0..3 {
+        let t0 = (n.lo[a] - o[a]) * inv[a];
+        let t1 = (n.hi[a] - o[a]) * inv[a];
+        let (near, far) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
+        // NaN (0 · ∞ on a box face) compares false and leaves the interval unchanged
+        if near > lo {
+            lo = near;
+        }
+        if far < hi {
+            hi = far;
+        }
+    }
+    lo <= hi
+}
+
+/// Whether the ray o + t d meets the parallelogram for some t in (t_min, t_max).
+#[inline(always)]
+fn crosses(q: &Parallelogram, o: V3, d: V3, t_min: f64, t_max: f64) -> bool {
+    let den = dot(d, q.n);
+    let w = sub(q.p0, o);
+    let num = dot(w, q.n);
+    // t = num / den in (t_min, t_max), without the division
+    let inside = if den > 0.0 {
+        num > t_min * den && num < t_max * den
+    } else if den < 0.0 {
+        num < t_min * den && num > t_max * den
+    } else {
+        false
+    };
+    if !inside {
+        return false;
+    }
+    let t = num / den;
+    let p = [
+        o[0] + t * d[0] - q.p0[0],
+        o[1] + t * d[1] - q.p0[1],
+        o[2] + t * d[2] - q.p0[2],
+    ];
+    let s = dot(p, q.u);
+    let u = dot(p, q.v);
+    (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&u)
+}
+
+/// Ray o + t d against a parallelogram (either side), t in (t_min, t_max).
+#[inline(always)]
+fn intersect(q: &Parallelogram, i: usize, o: V3, d: V3, t_min: f64, t_max: f64) -> Option<Hit> {
+    let den = dot(d, q.n);
+    if den == 0.0 {
+        return None;
+    }
+    let t = dot(sub(q.p0, o), q.n) / den;
+    if !(t > t_min && t < t_max) {
+        return None;
+    }
+    let p = [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]];
+    let (s, u) = q.params(p);
+    ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&u)).then_some(Hit {
+        surface: i,
+        dist: t,
+        s,
+        t: u,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(z: f64, x0: f64) -> Parallelogram {
+        Parallelogram::new(&[
+            [x0, 0.0, z],
+            [x0 + 1.0, 0.0, z],
+            [x0 + 1.0, 1.0, z],
+            [x0, 1.0, z],
+        ])
+    }
+
+    #[test]
+    fn nearest_hit_and_occlusion_agree_with_brute_force() {
+        let quads: Vec<_> = (0..9)
+            .map(|i| square(i as f64 * 0.5, (i % 3) as f64 * 0.7))
+            .collect();
+        let bvh = Bvh::new(&quads);
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..2000 {
+            let o = [rnd() * 3.0 - 0.5, rnd() * 2.0 - 0.5, rnd() * 5.0 - 0.5];
+            let e = [rnd() * 3.0 - 0.5, rnd() * 2.0 - 0.5, rnd() * 5.0 - 0.5];
+            let d = sub(e, o);
+            let brute = (0..quads.len())
+                .filter_map(|i| intersect(&quads[i], i, o, d, 1e-9, 1.0 - 1e-9))
+                .min_by(|a, b| a.dist.total_cmp(&b.dist));
+            let got = bvh.first_hit(o, d, 1e-9, 1.0 - 1e-9, [usize::MAX; 2]);
+            assert_eq!(got.map(|h| h.surface), brute.map(|h| h.surface));
+            assert_eq!(bvh.occluded(o, e, [usize::MAX; 2]), brute.is_some());
+        }
+    }
+}

@@ -1,0 +1,409 @@
+//! Hierarchical wavelet radiosity (Gortler, Schröder, Cohen and Hanrahan, "Wavelet Radiosity",
+//! SIGGRAPH 1993; Hanrahan, Salzman and Aupperle, "A Rapid Hierarchical Radiosity Algorithm",
+//! SIGGRAPH 1991) for 3D scenes.
+//!
+//! Instead of the whole Galerkin matrix of eq. (11), only the interactions that the refinement
+//! oracle ([`refine`]) asks for are built, as links between elements of per-surface quadtrees
+//! ([`tree`]) at whatever levels carry the transfer to within ε. Solving alternates
+//!
+//! 1. gather: H_R = Σ_links T_RS B_S over each element's links;
+//! 2. push-pull: H pushed down to the leaves, B = E + ρ H there, B pulled back up;
+//!
+//! (a Jacobi sweep of B = E + ρ K B in the multiresolution basis) to the solver's tolerance,
+//! then re-refines the links with the new B ("BF refinement") until no link changes.
+
+pub mod refine;
+pub mod tree;
+
+use crate::basis::Filters;
+use crate::field::{Field, Leaf};
+use crate::job::{JobError, Solution};
+use crate::progress::{Cancelled, Phase, Progress};
+use crate::projection::three_d::{piece_emission, Geometry};
+use crate::result::HierarchyStats;
+use crate::scene::{Job, Quad, Rgb, SceneKind};
+use crate::solve::Solved;
+use crate::transfer::Accuracy;
+use crate::visibility3d::Piece;
+use rayon::prelude::*;
+use refine::Link;
+use std::collections::BTreeMap;
+use std::time::Instant;
+use tree::{pull, push, Element, NONE};
+
+/// Refinement passes after the first solve, at most.
+const MAX_PASSES: usize = 6;
+
+/// The elements, links and settings of one hierarchical solve.
+pub struct Hierarchy<'g> {
+    pub geo: &'g Geometry,
+    pub quads: &'g [Quad],
+    pub filters: &'static Filters,
+    pub k: usize,
+    pub max_level: u32,
+    pub threshold: f64,
+    /// Largest channel of ρ per surface.
+    pub rho: Vec<f64>,
+    pub accuracy: Accuracy,
+    pub elements: Vec<Element>,
+    pub links: Vec<Link>,
+    pub rays: u64,
+    pub refinements: usize,
+}
+
+impl<'g> Hierarchy<'g> {
+    /// Roots for every surface, with E projected; no links yet.
+    pub fn new(
+        geo: &'g Geometry,
+        quads: &'g [Quad],
+        order: usize,
+        resolution: usize,
+        epsilon: f64,
+    ) -> Hierarchy<'g> {
+        let k = order + 1;
+        let emax = quads
+            .iter()
+            .flat_map(|q| q.material.emission)
+            .fold(0.0, f64::max);
+        let elements = quads
+            .iter()
+            .enumerate()
+            .map(|(i, q)| {
+                let piece = Piece::whole(i);
+                let area = geo.quads[i].area;
+                let mut e = vec![[0.0; 3]; k * k];
+                piece_emission(q, area, piece, k, &mut e);
+                Element {
+                    peak: refine::peak_emission(q, piece),
+                    piece,
+                    level: 0,
+                    cell: [0, 0],
+                    parent: NONE,
+                    children: NONE,
+                    area,
+                    b: e.clone(),
+                    e,
+                    h: vec![[0.0; 3]; k * k],
+                }
+            })
+            .collect();
+        Hierarchy {
+            geo,
+            quads,
+            filters: Filters::of_order(order),
+            k,
+            max_level: resolution.trailing_zeros(),
+            threshold: epsilon * emax,
+            rho: quads
+                .iter()
+                .map(|q| q.material.reflectance.iter().copied().fold(0.0, f64::max))
+                .collect(),
+            accuracy: Accuracy::coarse(order + 2),
+            elements,
+            links: Vec::new(),
+            rays: 0,
+            refinements: 0,
+        }
+    }
+
+    /// Links every pair of facing surfaces, refined against the current B.
+    pub fn link_all(&mut self, progress: &dyn Progress) -> Result<(), Cancelled> {
+        let n = self.quads.len();
+        let mut pending = Vec::new();
+        for i in 0..n {
+            for j in 0..n {
+                if i != j && self.geo.facing(i, j) {
+                    self.refine(i as u32, j as u32, &mut pending);
+                }
+            }
+            progress.check()?;
+        }
+        self.links = self.make_links(&pending, progress)?;
+        self.sort_links();
+        Ok(())
+    }
+
+    /// Re-evaluates every link with the current B; returns how many were refined.
+    pub fn rerefine(&mut self, progress: &dyn Progress) -> Result<usize, Cancelled> {
+        let old = std::mem::take(&mut self.links);
+        let mut keep = Vec::with_capacity(old.len());
+        let mut pending = Vec::new();
+        let mut refined = 0;
+        for l in old {
+            let r = &self.elements[l.recv as usize];
+            let err =
+                self.rho[r.piece.surface] * self.elements[l.src as usize].brightness() * l.geom;
+            let can =
+                r.level < self.max_level || self.elements[l.src as usize].level < self.max_level;
+            if can && err > self.threshold {
+                refined += 1;
+                let before = pending.len();
+                self.refine(l.recv, l.src, &mut pending);
+                // the same pair may come back unrefined (its estimate changed); keep its block
+                if pending.len() == before + 1
+                    && pending[before].0 == l.recv
+                    && pending[before].1 == l.src
+                {
+                    pending.pop();
+                    refined -= 1;
+                    keep.push(l);
+                }
+            } else {
+                keep.push(l);
+            }
+        }
+        keep.extend(self.make_links(&pending, progress)?);
+        self.links = keep;
+        self.sort_links();
+        Ok(refined)
+    }
+
+    fn sort_links(&mut self) {
+        self.links.sort_by_key(|l| (l.recv, l.src));
+    }
+
+    /// One Jacobi sweep: gather over the links, then push-pull. Returns the relative change
+    /// of B over the leaves.
+    pub fn sweep(&mut self) -> f64 {
+        let kk = self.k * self.k;
+        // gather, receivers in parallel, each receiver's links in a fixed order
+        let mut starts = Vec::new();
+        for (i, l) in self.links.iter().enumerate() {
+            if i == 0 || self.links[i - 1].recv != l.recv {
+                starts.push(i);
+            }
+        }
+        starts.push(self.links.len());
+        let gathered: Vec<(u32, Vec<Rgb>)> = starts
+            .par_windows(2)
+            .map(|w| {
+                let links = &self.links[w[0]..w[1]];
+                let mut h = vec![[0.0; 3]; kk];
+                for l in links {
+                    let b = &self.elements[l.src as usize].b;
+                    for (hr, row) in h.iter_mut().zip(l.block.chunks_exact(kk)) {
+                        for (v, bc) in row.iter().zip(b) {
+                            for ch in 0..3 {
+                                hr[ch] += v * bc[ch];
+                            }
+                        }
+                    }
+                }
+                (links[0].recv, h)
+            })
+            .collect();
+        for e in &mut self.elements {
+            e.h.iter_mut().for_each(|v| *v = [0.0; 3]);
+        }
+        for (r, h) in gathered {
+            self.elements[r as usize].h = h;
+        }
+        let mut change = 0.0;
+        let mut norm = 0.0;
+        for root in 0..self.quads.len() {
+            let down = vec![[0.0; 3]; kk];
+            self.push_pull(root as u32, &down, &mut change, &mut norm);
+        }
+        if norm > 0.0 {
+            (change / norm).sqrt()
+        } else {
+            0.0
+        }
+    }
+
+    /// Pushes `down` (H from the ancestors, in e's basis) to the leaves and pulls B back up.
+    fn push_pull(&mut self, e: u32, down: &[Rgb], change: &mut f64, norm: &mut f64) {
+        let kk = self.k * self.k;
+        let mut total: Vec<Rgb> = self.elements[e as usize].h.clone();
+        for (t, d) in total.iter_mut().zip(down) {
+            for c in 0..3 {
+                t[c] += d[c];
+            }
+        }
+        let el = &self.elements[e as usize];
+        if el.is_leaf() {
+            let rho = self.quads[el.piece.surface].material.reflectance;
+            let mut b = vec![[0.0; 3]; kk];
+            for i in 0..kk {
+                for c in 0..3 {
+                    b[i][c] = el.e[i][c] + rho[c] * total[i][c];
+                    *change += (b[i][c] - el.b[i][c]).powi(2);
+                    *norm += b[i][c].powi(2);
+                }
+            }
+            let el = &mut self.elements[e as usize];
+            el.b = b;
+            // the leaf keeps its total irradiance in h for the energy balance
+            el.h = total;
+            return;
+        }
+        let first = el.children;
+        let mut b = vec![[0.0; 3]; kk];
+        let mut child_down = vec![[0.0; 3]; kk];
+        for i in 0..4u32 {
+            let (dt, ds) = ((i / 2) as usize, (i % 2) as usize);
+            push(self.filters, &total, dt, ds, &mut child_down);
+            self.push_pull(first + i, &child_down.clone(), change, norm);
+            pull(
+                self.filters,
+                &self.elements[(first + i) as usize].b,
+                dt,
+                ds,
+                &mut b,
+            );
+        }
+        self.elements[e as usize].b = b;
+    }
+
+    /// Fields of B, E and H over each surface, from the leaves.
+    pub fn fields(&self, pick: impl Fn(&Element) -> &Vec<Rgb>) -> Vec<Field> {
+        let res = 1usize << self.max_level;
+        let order = self.k - 1;
+        (0..self.quads.len())
+            .map(|s| {
+                let mut leaves = Vec::new();
+                self.collect_leaves(s as u32, &pick, &mut leaves);
+                Field::from_leaves(2, order, res, leaves)
+            })
+            .collect()
+    }
+
+    fn collect_leaves(&self, e: u32, pick: &impl Fn(&Element) -> &Vec<Rgb>, out: &mut Vec<Leaf>) {
+        let el = &self.elements[e as usize];
+        if el.is_leaf() {
+            let f = 1.0 / el.area.sqrt();
+            out.push(Leaf {
+                s: el.piece.s,
+                t: el.piece.t,
+                coeffs: pick(el).iter().map(|v| v.map(|x| x * f)).collect(),
+            });
+            return;
+        }
+        for i in 0..4 {
+            self.collect_leaves(el.children + i, pick, out);
+        }
+    }
+
+    pub fn stats(&self) -> HierarchyStats {
+        HierarchyStats {
+            elements: self.elements.len(),
+            leaves: self.elements.iter().filter(|e| e.is_leaf()).count(),
+            links: self.links.len(),
+            levels: self
+                .elements
+                .iter()
+                .map(|e| e.level as usize + 1)
+                .max()
+                .unwrap_or(0),
+            refinements: self.refinements,
+            rays: self.rays,
+        }
+    }
+}
+
+/// Solves a job by hierarchical wavelet radiosity at the given order and finest resolution.
+pub fn solve(
+    job: &Job,
+    order: usize,
+    resolution: usize,
+    progress: &dyn Progress,
+) -> Result<Solution, JobError> {
+    let SceneKind::ThreeD(quads) = &job.scene.kind else {
+        return Err(JobError::Unsupported(format!(
+            "{} scenes with the hierarchical method are not available in this build",
+            job.scene.kind.name()
+        )));
+    };
+    let mut timings = BTreeMap::new();
+    let t = Instant::now();
+    progress.report(Phase::Refinement, 0.0);
+    let geo = Geometry::new(quads);
+    let mut h = Hierarchy::new(&geo, quads, order, resolution, job.solver.epsilon);
+    h.link_all(progress)?;
+    let mut refine_ms = ms(t);
+    let mut solve_ms = 0.0;
+    let mut history = Vec::new();
+    let mut iterations = 0;
+    let mut converged = false;
+    let mut residual = f64::INFINITY;
+    for pass in 0..=MAX_PASSES {
+        let t = Instant::now();
+        converged = false;
+        while iterations < job.solver.max_iterations {
+            progress.check()?;
+            residual = h.sweep();
+            iterations += 1;
+            history.push(residual);
+            progress.report(
+                Phase::Solve,
+                (iterations as f64 / job.solver.max_iterations as f64).min(1.0),
+            );
+            if residual < job.solver.tolerance {
+                converged = true;
+                break;
+            }
+        }
+        solve_ms += ms(t);
+        if pass == MAX_PASSES {
+            break;
+        }
+        let t = Instant::now();
+        progress.check()?;
+        progress.report(Phase::Refinement, (pass + 1) as f64 / MAX_PASSES as f64);
+        let refined = h.rerefine(progress)?;
+        refine_ms += ms(t);
+        if refined == 0 {
+            break;
+        }
+    }
+    timings.insert("refinement".into(), refine_ms);
+    timings.insert("solve".into(), solve_ms);
+    let fields = h.fields(|e| &e.b);
+    let emission = h.fields(|e| &e.e);
+    let irradiance = h.fields(|e| &e.h);
+    let kk = h.k * h.k;
+    let mut sorted: Vec<f64> = h
+        .links
+        .iter()
+        .flat_map(|l| l.block.iter().map(|v| v.abs()))
+        .collect();
+    sorted.sort_by(|a, b| b.total_cmp(a));
+    let magnitudes = crate::compress::sample_ranks(sorted.len(), job.output.coefficients)
+        .into_iter()
+        .map(|r| (r, sorted[r]))
+        .collect();
+    let leaf_b: Vec<Rgb> = h
+        .elements
+        .iter()
+        .filter(|e| e.is_leaf())
+        .flat_map(|e| e.b.iter().copied())
+        .collect();
+    Ok(Solution {
+        fields,
+        emission,
+        irradiance,
+        basis_size: h.elements.len() * kk,
+        matrix_entries: h.links.len() * kk * kk,
+        kept_entries: h.links.len() * kk * kk,
+        cut: 0.0,
+        magnitudes,
+        picture: None,
+        solved: Solved {
+            b: leaf_b,
+            iterations,
+            history,
+            residual,
+            converged,
+        },
+        kernel_error: None,
+        left_out: Vec::new(),
+        hierarchy: Some(h.stats()),
+        timings,
+        kept_squares: Vec::new(),
+        kernel_evaluations: None,
+    })
+}
+
+fn ms(t: Instant) -> f64 {
+    (t.elapsed().as_secs_f64() * 1e6).round() / 1e3
+}

@@ -1,0 +1,247 @@
+//! The refinement oracle and the links of hierarchical radiosity (Hanrahan, Salzman and
+//! Aupperle 1991, "BF refinement"; Gortler et al. 1993 for higher orders).
+//!
+//! A candidate interaction from source S to receiver R is estimated, before any quadrature,
+//! as the irradiance it carries times the part of it a polynomial of order m on the pair
+//! cannot represent:
+//!
+//! ```text
+//! err = ρ_R · B̄_S · F̂(R ← S) · (d / (d + dist))^(m+1)
+//! ```
+//!
+//! with F̂ the largest point-to-disc form factor A_S cosθR cosθS / (π r² + A_S) over a few
+//! sample points, d the larger diameter and dist the distance of the two pieces. A partly
+//! visible pair loses the smoothness factor (a shadow edge is not a polynomial). When err is
+//! above ε times the brightest emission, the larger element is split (down to the finest level
+//! allowed) and its children are linked instead; otherwise the pair becomes a link whose k² × k²
+//! block is integrated by [`crate::transfer`] and scaled by the visible fraction.
+
+use super::tree::{push, Element, NONE};
+use super::Hierarchy;
+use crate::progress::{Cancelled, Progress};
+use crate::projection::three_d::VISIBILITY_GRID;
+use crate::space::{dot, norm, quad_quad, sub};
+use crate::transfer::{self, Integrand};
+use crate::visibility3d::{pair_seed, Piece};
+use rayon::prelude::*;
+
+/// An interaction from `src` to `recv`.
+#[derive(Debug, Clone)]
+pub struct Link {
+    pub recv: u32,
+    pub src: u32,
+    /// The oracle's geometric factor: err = ρ_R B̄_S · geom.
+    pub geom: f64,
+    /// Visible fraction.
+    pub visibility: f64,
+    /// k² × k², row = receiver coefficient.
+    pub block: Vec<f64>,
+}
+
+impl Hierarchy<'_> {
+    /// A stable identity of an element (surface, level, cell) for seeding its rays.
+    fn identity(&self, e: u32) -> u64 {
+        let el = &self.elements[e as usize];
+        ((el.piece.surface as u64) << 48)
+            | ((el.level as u64) << 40)
+            | ((el.cell[1] as u64) << 20)
+            | el.cell[0] as u64
+    }
+
+    /// (F̂, smoothness factor) of the oracle.
+    fn estimate(&self, r: u32, s: u32) -> (f64, f64) {
+        let (er, es) = (&self.elements[r as usize], &self.elements[s as usize]);
+        let qr = &self.geo.quads[er.piece.surface];
+        let qs = &self.geo.quads[es.piece.surface];
+        let samples = |p: &Piece| {
+            let at = |u: f64, v: f64| {
+                (
+                    p.s[0] + u * (p.s[1] - p.s[0]),
+                    p.t[0] + v * (p.t[1] - p.t[0]),
+                )
+            };
+            [
+                at(0.5, 0.5),
+                at(0.2, 0.2),
+                at(0.8, 0.2),
+                at(0.2, 0.8),
+                at(0.8, 0.8),
+            ]
+        };
+        let mut f: f64 = 0.0;
+        for (sr, tr) in samples(&er.piece) {
+            let x = qr.at(sr, tr);
+            for (ss, ts) in samples(&es.piece) {
+                let y = qs.at(ss, ts);
+                let d = sub(y, x);
+                let r2 = dot(d, d);
+                let cr = dot(d, qr.n);
+                let cs = -dot(d, qs.n);
+                if cr <= 0.0 || cs <= 0.0 {
+                    continue;
+                }
+                let cos2 = cr * cs / r2;
+                f = f.max(es.area * cos2 / (std::f64::consts::PI * r2 + es.area));
+            }
+        }
+        let ca = qr.piece(er.piece.s, er.piece.t);
+        let cb = qs.piece(es.piece.s, es.piece.t);
+        let size = norm(sub(ca[2], ca[0])).max(norm(sub(cb[2], cb[0])));
+        let dist = quad_quad(&ca, qr.n, &cb, qs.n);
+        (f, (size / (size + dist)).powi(self.k as i32))
+    }
+
+    /// Splits element `e` into four if it has no children yet; B of the children is the
+    /// parent's B restricted to them.
+    pub(super) fn split(&mut self, e: u32) -> u32 {
+        if self.elements[e as usize].children != NONE {
+            return self.elements[e as usize].children;
+        }
+        self.refinements += 1;
+        let first = self.elements.len() as u32;
+        let parent = self.elements[e as usize].clone();
+        let kk = self.k * self.k;
+        for dt in 0..2 {
+            for ds in 0..2 {
+                let p = parent.piece;
+                let ms = 0.5 * (p.s[0] + p.s[1]);
+                let mt = 0.5 * (p.t[0] + p.t[1]);
+                let piece = Piece {
+                    surface: p.surface,
+                    s: if ds == 0 { [p.s[0], ms] } else { [ms, p.s[1]] },
+                    t: if dt == 0 { [p.t[0], mt] } else { [mt, p.t[1]] },
+                };
+                let mut b = vec![[0.0; 3]; kk];
+                push(self.filters, &parent.b, dt, ds, &mut b);
+                let mut e_coeffs = vec![[0.0; 3]; kk];
+                let quad = &self.quads[p.surface];
+                crate::projection::three_d::piece_emission(
+                    quad,
+                    self.geo.quads[p.surface].area,
+                    piece,
+                    self.k,
+                    &mut e_coeffs,
+                );
+                let peak = peak_emission(quad, piece);
+                self.elements.push(Element {
+                    peak,
+                    piece,
+                    level: parent.level + 1,
+                    cell: [
+                        2 * parent.cell[0] + ds as u32,
+                        2 * parent.cell[1] + dt as u32,
+                    ],
+                    parent: e,
+                    children: NONE,
+                    area: parent.area / 4.0,
+                    e: e_coeffs,
+                    b,
+                    h: vec![[0.0; 3]; kk],
+                });
+            }
+        }
+        self.elements[e as usize].children = first;
+        first
+    }
+
+    fn splittable(&self, e: u32) -> bool {
+        self.elements[e as usize].level < self.max_level
+    }
+
+    /// Refines the interaction from `s` to `r`, appending accepted (recv, src, geom, V) pairs.
+    pub(super) fn refine(&mut self, r: u32, s: u32, out: &mut Vec<(u32, u32, f64, f64)>) {
+        let rho = self.rho[self.elements[r as usize].piece.surface];
+        let b = self.elements[s as usize].brightness();
+        let (f, smooth) = self.estimate(r, s);
+        let thr = self.threshold;
+        let can = self.splittable(r) || self.splittable(s);
+        if can && rho * b * f * smooth > thr {
+            self.descend(r, s, out);
+            return;
+        }
+        let (pr, ps) = (
+            self.elements[r as usize].piece,
+            self.elements[s as usize].piece,
+        );
+        let seed = pair_seed(self.identity(r), self.identity(s));
+        let mut rays = 0;
+        let v = self
+            .geo
+            .visibility(pr, ps, seed, VISIBILITY_GRID, &mut rays);
+        self.rays += rays;
+        if v == 0.0 {
+            return;
+        }
+        let geom = if v < 1.0 { f } else { f * smooth };
+        if can && rho * b * geom > thr {
+            self.descend(r, s, out);
+            return;
+        }
+        out.push((r, s, geom, v));
+    }
+
+    fn descend(&mut self, r: u32, s: u32, out: &mut Vec<(u32, u32, f64, f64)>) {
+        let split_r = self.splittable(r)
+            && (!self.splittable(s)
+                || self.elements[r as usize].area >= self.elements[s as usize].area);
+        if split_r {
+            let c = self.split(r);
+            for i in 0..4 {
+                self.refine(c + i, s, out);
+            }
+        } else {
+            let c = self.split(s);
+            for i in 0..4 {
+                self.refine(r, c + i, out);
+            }
+        }
+    }
+
+    /// Integrates the blocks of accepted pairs, in parallel.
+    pub(super) fn make_links(
+        &self,
+        pending: &[(u32, u32, f64, f64)],
+        progress: &dyn Progress,
+    ) -> Result<Vec<Link>, Cancelled> {
+        let kk = self.k * self.k;
+        pending
+            .par_iter()
+            .map(|&(recv, src, geom, visibility)| {
+                progress.check()?;
+                let mut block = vec![0.0; kk * kk];
+                let (a, b) = (
+                    self.elements[recv as usize].piece,
+                    self.elements[src as usize].piece,
+                );
+                transfer::block(
+                    &self.geo.quads,
+                    a,
+                    b,
+                    Integrand::Galerkin { k: self.k },
+                    self.accuracy,
+                    &mut block,
+                );
+                block.iter_mut().for_each(|v| *v *= visibility);
+                Ok(Link {
+                    recv,
+                    src,
+                    geom,
+                    visibility,
+                    block,
+                })
+            })
+            .collect()
+    }
+}
+
+/// The largest emission channel of `quad` if `piece` overlaps its emission region, else 0.
+pub fn peak_emission(quad: &crate::scene::Quad, piece: Piece) -> f64 {
+    let (rs, rt) = quad.emission_region;
+    let overlaps =
+        piece.s[0] < rs[1] && rs[0] < piece.s[1] && piece.t[0] < rt[1] && rt[0] < piece.t[1];
+    if overlaps {
+        quad.material.emission.iter().copied().fold(0.0, f64::max)
+    } else {
+        0.0
+    }
+}

@@ -1,0 +1,145 @@
+//! The element quadtrees of hierarchical wavelet radiosity (Gortler, Schröder, Cohen and
+//! Hanrahan 1993, §4): every surface is the root of a tree of pieces, each piece carrying the
+//! k² tensor Legendre coefficients (orthonormal in its area) of E, B and the gathered H.
+//!
+//! Push and pull are the two-scale relation of the multiwavelet basis (Alpert's filters h):
+//! a parent's coefficients are H⊗H applied to its four children's ("pull", the projection of
+//! the children's B onto the parent's space), and a parent's polynomial restricted to a child
+//! is the transpose ("push", exact).
+
+use crate::basis::Filters;
+use crate::scene::Rgb;
+use crate::visibility3d::Piece;
+
+pub const NONE: u32 = u32::MAX;
+
+#[derive(Debug, Clone)]
+pub struct Element {
+    pub piece: Piece,
+    pub level: u32,
+    /// Cell indices (s, t) at its level.
+    pub cell: [u32; 2],
+    pub parent: u32,
+    /// First of four children (`[t][s]` order), or [`NONE`].
+    pub children: u32,
+    /// World area.
+    pub area: f64,
+    pub e: Vec<Rgb>,
+    /// The largest emission inside the element (a light patch may cover only part of it).
+    pub peak: f64,
+    pub b: Vec<Rgb>,
+    pub h: Vec<Rgb>,
+}
+
+impl Element {
+    pub fn is_leaf(&self) -> bool {
+        self.children == NONE
+    }
+    /// The brightness the oracle weighs a transfer by: the mean of B (largest channel) plus
+    /// the peak emission inside, so that a small light on a large surface is not averaged away.
+    pub fn brightness(&self) -> f64 {
+        let c = self.b[0];
+        c[0].max(c[1]).max(c[2]) / self.area.sqrt() + self.peak
+    }
+}
+
+/// The coefficients of child (dt, ds) of a parent polynomial `parent` (k² each).
+pub fn push(filters: &Filters, parent: &[Rgb], dt: usize, ds: usize, out: &mut [Rgb]) {
+    let k = filters.k;
+    let h = &filters.h;
+    out.fill([0.0; 3]);
+    for a in 0..k {
+        for b in 0..k {
+            let mut acc = [0.0; 3];
+            for qt in 0..k {
+                let ht = h[qt * 2 * k + dt * k + a];
+                for ps in 0..k {
+                    let w = ht * h[ps * 2 * k + ds * k + b];
+                    let p = parent[qt * k + ps];
+                    for c in 0..3 {
+                        acc[c] += w * p[c];
+                    }
+                }
+            }
+            out[a * k + b] = acc;
+        }
+    }
+}
+
+/// Adds the projection of child (dt, ds)'s coefficients onto the parent's space to `parent`.
+pub fn pull(filters: &Filters, child: &[Rgb], dt: usize, ds: usize, parent: &mut [Rgb]) {
+    let k = filters.k;
+    let h = &filters.h;
+    for qt in 0..k {
+        for ps in 0..k {
+            let mut acc = [0.0; 3];
+            for a in 0..k {
+                let ht = h[qt * 2 * k + dt * k + a];
+                for b in 0..k {
+                    let w = ht * h[ps * 2 * k + ds * k + b];
+                    let v = child[a * k + b];
+                    for c in 0..3 {
+                        acc[c] += w * v[c];
+                    }
+                }
+            }
+            for c in 0..3 {
+                parent[qt * k + ps][c] += acc[c];
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::basis::legendre;
+
+    /// A polynomial of degree m on the parent, pushed to a child, evaluates to the same values;
+    /// pulling the four children back gives the parent again (m = 0 … 3).
+    #[test]
+    fn push_is_exact_and_pull_inverts_it() {
+        for m in 0..=3 {
+            let f = Filters::of_order(m);
+            let k = m + 1;
+            let parent: Vec<Rgb> = (0..k * k)
+                .map(|i| [1.0 + i as f64, -0.5 * i as f64, 0.25])
+                .collect();
+            let mut back = vec![[0.0; 3]; k * k];
+            let mut child = vec![[0.0; 3]; k * k];
+            let eval = |c: &[Rgb], s: f64, t: f64, area: f64| {
+                let mut ps = vec![0.0; k];
+                let mut pt = vec![0.0; k];
+                legendre(s, &mut ps);
+                legendre(t, &mut pt);
+                let mut v = 0.0;
+                for a in 0..k {
+                    for b in 0..k {
+                        v += c[a * k + b][0] * pt[a] * ps[b];
+                    }
+                }
+                v / area.sqrt()
+            };
+            for dt in 0..2 {
+                for ds in 0..2 {
+                    push(f, &parent, dt, ds, &mut child);
+                    // the point (0.3, 0.6) of the child is ((ds + 0.3)/2, (dt + 0.6)/2) of the parent
+                    let pv = eval(
+                        &parent,
+                        (ds as f64 + 0.3) / 2.0,
+                        (dt as f64 + 0.6) / 2.0,
+                        1.0,
+                    );
+                    let cv = eval(&child, 0.3, 0.6, 0.25);
+                    assert!((pv - cv).abs() < 1e-12, "m={m}: {pv} vs {cv}");
+                    pull(f, &child, dt, ds, &mut back);
+                }
+            }
+            for (a, b) in back.iter().zip(&parent) {
+                for c in 0..3 {
+                    assert!((a[c] - b[c]).abs() < 1e-12);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,317 @@
+//! The Galerkin matrix of a 3D scene (slides' eq. (3) kernel, eq. (11) matrix): n × n cells
+//! on every parallelogram, k² = (m + 1)² tensor Legendre functions per cell, orthonormal in
+//! area. Each cell pair is integrated by [`crate::transfer`] (tensor Gauss rules far apart,
+//! adaptive subdivision toward shared edges) and scaled by the fraction of it that is visible
+//! ([`crate::visibility3d`]: no rays when no surface can come between the two cells).
+
+use super::{Dense, Discretization, Layout, System};
+use crate::basis::legendre;
+use crate::bvh::Bvh;
+use crate::progress::{Cancelled, Phase, Progress};
+use crate::quadrature::Rule;
+use crate::scene::Quad;
+use crate::space::{quad_quad, Parallelogram};
+use crate::transfer::{self, Accuracy, Integrand};
+use crate::visibility3d::{self, occluders_of, pair_seed, Piece};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Rays per side of the stratified visibility grid of a partly occluded cell pair.
+pub const VISIBILITY_GRID: usize = 4;
+
+/// The geometry of a 3D scene with the facts about pairs of surfaces that every method needs.
+pub struct Geometry {
+    pub quads: Vec<Parallelogram>,
+    pub bvh: Bvh,
+    /// Row-major `S × S`: the surfaces that may occlude the pair.
+    pub occluders: Vec<Vec<usize>>,
+    /// Row-major `S × S`: whether some point of each surface is in front of the other.
+    pub facing: Vec<bool>,
+}
+
+impl Geometry {
+    pub fn new(quads: &[Quad]) -> Geometry {
+        let quads: Vec<Parallelogram> = quads
+            .iter()
+            .map(|q| Parallelogram::new(&q.corners))
+            .collect();
+        let n = quads.len();
+        let mut facing = vec![false; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                if i != j {
+                    facing[i * n + j] =
+                        in_front(&quads[i], &quads[j]) && in_front(&quads[j], &quads[i]);
+                }
+            }
+        }
+        Geometry {
+            bvh: Bvh::new(&quads),
+            occluders: visibility3d::surface_occluders(&quads),
+            facing,
+            quads,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.quads.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.quads.is_empty()
+    }
+
+    pub fn facing(&self, i: usize, j: usize) -> bool {
+        self.facing[i * self.len() + j]
+    }
+
+    /// Surface pairs (i < j) whose closed parallelograms meet.
+    pub fn touching(&self) -> Vec<(usize, usize)> {
+        let n = self.len();
+        let mut out = Vec::new();
+        for i in 0..n {
+            for j in i + 1..n {
+                let (a, b) = (&self.quads[i], &self.quads[j]);
+                let ca = a.piece([0.0, 1.0], [0.0, 1.0]);
+                let cb = b.piece([0.0, 1.0], [0.0, 1.0]);
+                if quad_quad(&ca, a.n, &cb, b.n) <= 1e-9 * a.diameter().max(b.diameter()) {
+                    out.push((i, j));
+                }
+            }
+        }
+        out
+    }
+
+    /// The visible fraction of the pair of pieces, 1 without rays when nothing can come
+    /// between them; rays cast are added to `rays`.
+    pub fn visibility(&self, a: Piece, b: Piece, seed: u64, grid: usize, rays: &mut u64) -> f64 {
+        let cand = &self.occluders[a.surface * self.len() + b.surface];
+        if cand.is_empty() || occluders_of(&self.quads, a, b, cand).is_empty() {
+            return 1.0;
+        }
+        visibility3d::visible_fraction(&self.bvh, a, b, grid, seed, rays)
+    }
+}
+
+/// Whether some corner of `b` is strictly in front of `a`.
+fn in_front(a: &Parallelogram, b: &Parallelogram) -> bool {
+    let tol = 1e-12 * (a.diameter() + b.diameter());
+    b.piece([0.0, 1.0], [0.0, 1.0])
+        .iter()
+        .any(|&c| a.side(c) > tol)
+}
+
+/// The accuracy of the projection method's cell pairs at `q` Gauss points per direction.
+pub fn accuracy(q: usize) -> Accuracy {
+    Accuracy {
+        q_min: q,
+        digits: 6.0,
+        outer_depth: 10,
+        inner_depth: 2,
+    }
+}
+
+fn cell(c: usize, n: usize) -> [f64; 2] {
+    let h = 1.0 / n as f64;
+    [c as f64 * h, (c + 1) as f64 * h]
+}
+
+/// Builds the 3D system.
+pub fn build(
+    quads: &[Quad],
+    disc: Discretization,
+    progress: &dyn Progress,
+) -> Result<System, Cancelled> {
+    let geo = Geometry::new(quads);
+    let (matrix, _rays) = matrix(&geo, disc, accuracy(disc.quadrature), progress)?;
+    let k = disc.order + 1;
+    let layout = Layout::Square {
+        cells: disc.cells,
+        k,
+    };
+    let mut emission = Vec::with_capacity(quads.len() * layout.len());
+    for (q, p) in quads.iter().zip(&geo.quads) {
+        emission.extend(emission_coefficients(q, p.area, disc));
+    }
+    Ok(System {
+        layout,
+        surfaces: quads.len(),
+        matrix,
+        emission,
+        reflectance: quads.iter().map(|q| q.material.reflectance).collect(),
+        measure: geo.quads.iter().map(|q| q.area).collect(),
+        touching: geo.touching(),
+        kernel_evaluations: None,
+    })
+}
+
+/// E_{cell,(q,p)} = E √A / h ∫∫_{cell ∩ region} φ_p(ŝ) φ_q(t̂) ds dt, exactly.
+pub fn emission_coefficients(q: &Quad, area: f64, disc: Discretization) -> Vec<[f64; 3]> {
+    let k = disc.order + 1;
+    let n = disc.cells;
+    let mut out = vec![[0.0; 3]; n * n * k * k];
+    for ct in 0..n {
+        for cs in 0..n {
+            let piece = Piece {
+                surface: 0,
+                s: cell(cs, n),
+                t: cell(ct, n),
+            };
+            let at = (ct * n + cs) * k * k;
+            piece_emission(q, area, piece, k, &mut out[at..at + k * k]);
+        }
+    }
+    out
+}
+
+/// E ∫_{piece ∩ region} N_(q,p) dA for N orthonormal in the piece's area, exactly.
+pub fn piece_emission(q: &Quad, area: f64, piece: Piece, k: usize, out: &mut [[f64; 3]]) {
+    let (rs, rt) = q.emission_region;
+    let s = [piece.s[0].max(rs[0]), piece.s[1].min(rs[1])];
+    let t = [piece.t[0].max(rt[0]), piece.t[1].min(rt[1])];
+    if s[1] <= s[0] || t[1] <= t[0] || q.material.emission == [0.0; 3] {
+        return;
+    }
+    let (hs, ht) = (piece.s[1] - piece.s[0], piece.t[1] - piece.t[0]);
+    let norm = area / (area * hs * ht).sqrt();
+    let rule = Rule::for_degree(k);
+    let mut ps = vec![0.0; k];
+    let mut pt = vec![0.0; k];
+    for (y, wy) in rule.mapped(t[0], t[1]) {
+        legendre((y - piece.t[0]) / ht, &mut pt);
+        for (x, wx) in rule.mapped(s[0], s[1]) {
+            legendre((x - piece.s[0]) / hs, &mut ps);
+            for a in 0..k {
+                for b in 0..k {
+                    let v = wx * wy * pt[a] * ps[b] * norm;
+                    for (o, e) in out[a * k + b].iter_mut().zip(q.material.emission) {
+                        *o += v * e;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The ρ-free Galerkin matrix, rows of cells in parallel; also the visibility rays cast.
+pub fn matrix(
+    geo: &Geometry,
+    disc: Discretization,
+    acc: Accuracy,
+    progress: &dyn Progress,
+) -> Result<(Dense, u64), Cancelled> {
+    let k = disc.order + 1;
+    let kk = k * k;
+    let n = disc.cells;
+    let per = n * n * kk;
+    let size = geo.len() * per;
+    let mut m = Dense::zeros(size);
+    let done = AtomicUsize::new(0);
+    let blocks = geo.len() * n * n;
+    progress.report(Phase::Projection, 0.0);
+    let rays: Vec<u64> = m
+        .data
+        .par_chunks_mut(kk * size)
+        .enumerate()
+        .map(|(row_block, rows)| {
+            progress.check()?;
+            let (i, a) = (row_block / (n * n), row_block % (n * n));
+            let pa = Piece {
+                surface: i,
+                s: cell(a % n, n),
+                t: cell(a / n, n),
+            };
+            let mut block = vec![0.0; kk * kk];
+            let mut rays = 0u64;
+            for j in 0..geo.len() {
+                if i == j || !geo.facing(i, j) {
+                    continue;
+                }
+                for b in 0..n * n {
+                    let pb = Piece {
+                        surface: j,
+                        s: cell(b % n, n),
+                        t: cell(b / n, n),
+                    };
+                    let seed = pair_seed((i * n * n + a) as u64, (j * n * n + b) as u64);
+                    let v = geo.visibility(pa, pb, seed, VISIBILITY_GRID, &mut rays);
+                    if v == 0.0 {
+                        continue;
+                    }
+                    block.fill(0.0);
+                    transfer::block(
+                        &geo.quads,
+                        pa,
+                        pb,
+                        Integrand::Galerkin { k },
+                        acc,
+                        &mut block,
+                    );
+                    for r in 0..kk {
+                        let dst = &mut rows
+                            [r * size + j * per + b * kk..r * size + j * per + (b + 1) * kk];
+                        for (d, s) in dst.iter_mut().zip(&block[r * kk..(r + 1) * kk]) {
+                            *d = v * s;
+                        }
+                    }
+                }
+            }
+            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+            if d % 16 == 0 || d == blocks {
+                progress.report(Phase::Projection, d as f64 / blocks as f64);
+            }
+            Ok::<u64, Cancelled>(rays)
+        })
+        .collect::<Result<_, _>>()?;
+    Ok((m, rays.iter().sum()))
+}
+
+/// ∫_i ∫_j K² V dy dx for every ordered pair of surfaces (row-major `S × S`) on `cells × cells`
+/// order-0 pieces: the denominator of eq. (5). Pairs that touch diverge: `skip` them.
+pub fn kernel_squares(
+    geo: &Geometry,
+    cells: usize,
+    q: usize,
+    skip: impl Fn(usize, usize) -> bool + Sync,
+    progress: &dyn Progress,
+) -> Result<Vec<f64>, Cancelled> {
+    let s = geo.len();
+    let acc = accuracy(q);
+    (0..s * s)
+        .into_par_iter()
+        .map(|ij| {
+            let (i, j) = (ij / s, ij % s);
+            if i == j || skip(i, j) || !geo.facing(i, j) {
+                return Ok(0.0);
+            }
+            let mut sum = 0.0;
+            let mut rays = 0;
+            for a in 0..cells * cells {
+                progress.check()?;
+                let pa = Piece {
+                    surface: i,
+                    s: cell(a % cells, cells),
+                    t: cell(a / cells, cells),
+                };
+                for b in 0..cells * cells {
+                    let pb = Piece {
+                        surface: j,
+                        s: cell(b % cells, cells),
+                        t: cell(b / cells, cells),
+                    };
+                    let seed = pair_seed(
+                        (i * cells * cells + a) as u64,
+                        (j * cells * cells + b) as u64,
+                    );
+                    let v = geo.visibility(pa, pb, seed, VISIBILITY_GRID, &mut rays);
+                    if v > 0.0 {
+                        let mut out = [0.0];
+                        transfer::block(&geo.quads, pa, pb, Integrand::Squared, acc, &mut out);
+                        sum += v * out[0];
+                    }
+                }
+            }
+            Ok(sum)
+        })
+        .collect()
+}

@@ -1,0 +1,270 @@
+//! Points, vectors and parallelograms of 3D scenes (`spec/scene.md`, kind `3d`):
+//! p(s, t) = p0 + s (p1 − p0) + t (p3 − p0), front normal normalize((p1 − p0) × (p3 − p0)),
+//! and the distances between pieces of them that the integrators and the visibility tests need.
+
+pub type V3 = [f64; 3];
+
+#[inline(always)]
+pub fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline(always)]
+pub fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+#[inline(always)]
+pub fn scale(a: V3, s: f64) -> V3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+#[inline(always)]
+pub fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline(always)]
+pub fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+#[inline(always)]
+pub fn norm(a: V3) -> f64 {
+    dot(a, a).sqrt()
+}
+pub fn normalize(a: V3) -> V3 {
+    scale(a, 1.0 / norm(a))
+}
+
+/// A parallelogram surface with the dual basis that maps a point of its plane back to (s, t).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Parallelogram {
+    pub p0: V3,
+    pub e1: V3,
+    pub e3: V3,
+    /// Unit front normal.
+    pub n: V3,
+    pub area: f64,
+    /// s = (p − p0)·u, t = (p − p0)·v for p in the plane.
+    pub u: V3,
+    pub v: V3,
+}
+
+impl Parallelogram {
+    pub fn new(corners: &[V3; 4]) -> Parallelogram {
+        let p0 = corners[0];
+        let e1 = sub(corners[1], p0);
+        let e3 = sub(corners[3], p0);
+        let c = cross(e1, e3);
+        let area = norm(c);
+        let n = scale(c, 1.0 / area);
+        // dual basis: u ⟂ e3, u·e1 = 1; v ⟂ e1, v·e3 = 1
+        let u = cross(e3, n);
+        let u = scale(u, 1.0 / dot(u, e1));
+        let v = cross(n, e1);
+        let v = scale(v, 1.0 / dot(v, e3));
+        Parallelogram {
+            p0,
+            e1,
+            e3,
+            n,
+            area,
+            u,
+            v,
+        }
+    }
+
+    #[inline(always)]
+    pub fn at(&self, s: f64, t: f64) -> V3 {
+        [
+            self.p0[0] + s * self.e1[0] + t * self.e3[0],
+            self.p0[1] + s * self.e1[1] + t * self.e3[1],
+            self.p0[2] + s * self.e1[2] + t * self.e3[2],
+        ]
+    }
+
+    /// (s, t) of the projection of p onto the plane.
+    #[inline(always)]
+    pub fn params(&self, p: V3) -> (f64, f64) {
+        let d = sub(p, self.p0);
+        (dot(d, self.u), dot(d, self.v))
+    }
+
+    /// Signed distance of p from the plane, positive in front.
+    #[inline(always)]
+    pub fn side(&self, p: V3) -> f64 {
+        dot(sub(p, self.p0), self.n)
+    }
+
+    /// The corners of the piece `[s0,s1] × [t0,t1]`, counter-clockwise.
+    pub fn piece(&self, s: [f64; 2], t: [f64; 2]) -> [V3; 4] {
+        [
+            self.at(s[0], t[0]),
+            self.at(s[1], t[0]),
+            self.at(s[1], t[1]),
+            self.at(s[0], t[1]),
+        ]
+    }
+
+    /// Length of the longer diagonal of the whole parallelogram.
+    pub fn diameter(&self) -> f64 {
+        norm(add(self.e1, self.e3)).max(norm(sub(self.e1, self.e3)))
+    }
+}
+
+/// Distance between point p and segment [a, b].
+pub fn point_segment(p: V3, a: V3, b: V3) -> f64 {
+    let d = sub(b, a);
+    let l2 = dot(d, d);
+    let t = if l2 > 0.0 {
+        (dot(sub(p, a), d) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    norm(sub(add(a, scale(d, t)), p))
+}
+
+/// Distance between the segments [p1, q1] and [p2, q2] (Ericson, Real-Time Collision
+/// Detection, §5.1.9).
+pub fn segment_segment(p1: V3, q1: V3, p2: V3, q2: V3) -> f64 {
+    let d1 = sub(q1, p1);
+    let d2 = sub(q2, p2);
+    let r = sub(p1, p2);
+    let a = dot(d1, d1);
+    let e = dot(d2, d2);
+    let f = dot(d2, r);
+    let eps = 1e-30;
+    let (s, t);
+    if a <= eps && e <= eps {
+        return norm(r);
+    }
+    if a <= eps {
+        s = 0.0;
+        t = (f / e).clamp(0.0, 1.0);
+    } else {
+        let c = dot(d1, r);
+        if e <= eps {
+            t = 0.0;
+            s = (-c / a).clamp(0.0, 1.0);
+        } else {
+            let b = dot(d1, d2);
+            let den = a * e - b * b;
+            let mut s0 = if den > eps * a * e {
+                ((b * f - c * e) / den).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let mut t0 = (b * s0 + f) / e;
+            if t0 < 0.0 {
+                t0 = 0.0;
+                s0 = (-c / a).clamp(0.0, 1.0);
+            } else if t0 > 1.0 {
+                t0 = 1.0;
+                s0 = ((b - c) / a).clamp(0.0, 1.0);
+            }
+            s = s0;
+            t = t0;
+        }
+    }
+    norm(sub(add(p1, scale(d1, s)), add(p2, scale(d2, t))))
+}
+
+/// Distance from p to the convex planar quadrilateral `q` (corners in order, normal `n`).
+pub fn point_quad(p: V3, q: &[V3; 4], n: V3) -> f64 {
+    let mut inside = true;
+    for i in 0..4 {
+        let e = sub(q[(i + 1) % 4], q[i]);
+        if dot(cross(e, sub(p, q[i])), n) < 0.0 {
+            inside = false;
+            break;
+        }
+    }
+    if inside {
+        return dot(sub(p, q[0]), n).abs();
+    }
+    (0..4)
+        .map(|i| point_segment(p, q[i], q[(i + 1) % 4]))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Whether the segment [a, b] crosses the convex planar quadrilateral `q` with normal `n`.
+fn segment_crosses(a: V3, b: V3, q: &[V3; 4], n: V3) -> bool {
+    let da = dot(sub(a, q[0]), n);
+    let db = dot(sub(b, q[0]), n);
+    if (da > 0.0 && db > 0.0) || (da < 0.0 && db < 0.0) || da == db {
+        return false;
+    }
+    let x = add(a, scale(sub(b, a), da / (da - db)));
+    (0..4).all(|i| dot(cross(sub(q[(i + 1) % 4], q[i]), sub(x, q[i])), n) >= 0.0)
+}
+
+/// Distance between two convex planar quadrilaterals (0 when they meet).
+pub fn quad_quad(a: &[V3; 4], na: V3, b: &[V3; 4], nb: V3) -> f64 {
+    let mut d = f64::INFINITY;
+    for i in 0..4 {
+        let (a0, a1) = (a[i], a[(i + 1) % 4]);
+        let (b0, b1) = (b[i], b[(i + 1) % 4]);
+        if segment_crosses(a0, a1, b, nb) || segment_crosses(b0, b1, a, na) {
+            return 0.0;
+        }
+        for j in 0..4 {
+            d = d.min(segment_segment(a0, a1, b[j], b[(j + 1) % 4]));
+        }
+        d = d.min(point_quad(a[i], b, nb)).min(point_quad(b[i], a, na));
+    }
+    d
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parametrisation_round_trips() {
+        let q = Parallelogram::new(&[
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [3.0, 1.0, 0.0],
+            [1.0, 1.0, 0.0],
+        ]);
+        assert_eq!(q.n, [0.0, 0.0, 1.0]);
+        assert!((q.area - 2.0).abs() < 1e-15);
+        let (s, t) = q.params(q.at(0.3, 0.7));
+        assert!((s - 0.3).abs() < 1e-15 && (t - 0.7).abs() < 1e-15);
+    }
+
+    #[test]
+    fn distances() {
+        let a = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        let up = [0.0, 0.0, 1.0];
+        let lifted = a.map(|p| [p[0] + 0.5, p[1], p[2] + 2.0]);
+        assert!((quad_quad(&a, up, &lifted, up) - 2.0).abs() < 1e-15);
+        // a wall sharing the edge x = 1
+        let wall = [
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [1.0, 1.0, 1.0],
+            [1.0, 0.0, 1.0],
+        ];
+        assert_eq!(quad_quad(&a, up, &wall, [1.0, 0.0, 0.0]), 0.0);
+        // a segment piercing the square
+        let pierce = [
+            [0.5, 0.5, -1.0],
+            [0.6, 0.5, -1.0],
+            [0.6, 0.5, 1.0],
+            [0.5, 0.5, 1.0],
+        ];
+        assert_eq!(quad_quad(&a, up, &pierce, [0.0, -1.0, 0.0]), 0.0);
+        assert!(
+            (segment_segment([0.0; 3], [1.0, 0.0, 0.0], [0.5, 1.0, 1.0], [0.5, 1.0, 2.0])
+                - 2f64.sqrt())
+            .abs()
+                < 1e-15
+        );
+    }
+}

@@ -1,0 +1,567 @@
+//! The Galerkin transfer between two pieces of parallelograms, the slides' eq. (11) in 3D:
+//! T_ij = ∫_a ∫_b K(x, y) N_i(x) N_j(y) dy dx with K = cosθx cosθy / (π r²) of eq. (3) (without
+//! V: the callers scale by a visibility estimate) and N the tensor shifted-Legendre functions of
+//! order m on each piece, orthonormal in area: N = φ_p(ŝ) φ_q(t̂) / √A.
+//!
+//! Far pairs (distance ≥ the larger diameter) take a tensor Gauss rule whose order follows the
+//! separation ([`points`]). Near pairs (shared edges of a room, a box standing on the floor) are
+//! integrated as an outer rule over `a`, split adaptively toward `b` along the axis over which
+//! the distance changes (strips toward a shared edge), and an inner integral over `b` for each
+//! outer point, split as a quadtree around the point. Both recursions stop at a depth limit,
+//! which bounds the cost and the error next to the singular edge.
+
+use crate::basis::legendre;
+use crate::quadrature::Rule;
+use crate::space::{cross, dot, norm, point_quad, quad_quad, sub, Parallelogram, V3};
+use crate::visibility3d::Piece;
+
+/// Largest k = m + 1 (the document allows m ≤ 8) and Gauss rule handled on the stack.
+pub const MAX_K: usize = 9;
+const MAX_Q: usize = 16;
+
+/// How hard to work.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Accuracy {
+    /// Fewest Gauss points per direction.
+    pub q_min: usize,
+    /// Decimal digits the far-field rules aim at.
+    pub digits: f64,
+    /// Deepest split of the outer piece toward a near target, and of the inner piece around a
+    /// point.
+    pub outer_depth: u32,
+    pub inner_depth: u32,
+}
+
+impl Accuracy {
+    /// Close to machine precision (closed-form checks, the projection method).
+    pub fn fine(q_min: usize) -> Accuracy {
+        Accuracy {
+            q_min,
+            digits: 13.0,
+            outer_depth: 18,
+            inner_depth: 24,
+        }
+    }
+    /// A few digits (the links of the hierarchical method, which an oracle already bounds).
+    pub fn coarse(q_min: usize) -> Accuracy {
+        Accuracy {
+            q_min,
+            digits: 6.0,
+            outer_depth: 3,
+            inner_depth: 0,
+        }
+    }
+}
+
+/// Gauss points per direction for a pair at distance `dist` of size `size`: the error of a
+/// q-point rule decays like ρ^(−2q), ρ the Bernstein ellipse parameter of the separation.
+pub fn points(dist: f64, size: f64, digits: f64) -> usize {
+    let a = 1.0 + 2.0 * dist / size.max(1e-300);
+    let rho = a + (a * a - 1.0).max(0.0).sqrt();
+    (digits * std::f64::consts::LN_10 / (2.0 * rho.ln()))
+        .ceil()
+        .clamp(1.0, MAX_Q as f64) as usize
+}
+
+/// What to integrate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Integrand {
+    /// K N_i N_j, a k² × k² block (row = a's `q·k + p`, column = b's).
+    Galerkin { k: usize },
+    /// K², one number (the denominator of eq. (5)), over the pieces' areas.
+    Squared,
+}
+
+/// Adds the transfer from `b` to `a` to `out` (k² × k² for Galerkin, 1 for Squared).
+pub fn block(
+    quads: &[Parallelogram],
+    a: Piece,
+    b: Piece,
+    what: Integrand,
+    acc: Accuracy,
+    out: &mut [f64],
+) {
+    let (qa, qb) = (&quads[a.surface], &quads[b.surface]);
+    let area = |q: &Parallelogram, p: &Piece| q.area * (p.s[1] - p.s[0]) * (p.t[1] - p.t[0]);
+    let (k, scale) = match what {
+        Integrand::Galerkin { k } => {
+            assert!(k <= MAX_K);
+            (k, qa.area * qb.area / (area(qa, &a) * area(qb, &b)).sqrt())
+        }
+        Integrand::Squared => (1, qa.area * qb.area),
+    };
+    let ctx = Ctx {
+        qa,
+        qb,
+        a,
+        b,
+        k,
+        squared: what == Integrand::Squared,
+        acc,
+        scale,
+    };
+    ctx.pair(Rect { s: a.s, t: a.t }, Rect { s: b.s, t: b.t }, 0, out);
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Rect {
+    s: [f64; 2],
+    t: [f64; 2],
+}
+
+impl Rect {
+    fn halves_s(&self) -> [Rect; 2] {
+        let m = 0.5 * (self.s[0] + self.s[1]);
+        [
+            Rect {
+                s: [self.s[0], m],
+                t: self.t,
+            },
+            Rect {
+                s: [m, self.s[1]],
+                t: self.t,
+            },
+        ]
+    }
+    fn halves_t(&self) -> [Rect; 2] {
+        let m = 0.5 * (self.t[0] + self.t[1]);
+        [
+            Rect {
+                s: self.s,
+                t: [self.t[0], m],
+            },
+            Rect {
+                s: self.s,
+                t: [m, self.t[1]],
+            },
+        ]
+    }
+}
+
+struct Ctx<'a> {
+    qa: &'a Parallelogram,
+    qb: &'a Parallelogram,
+    a: Piece,
+    b: Piece,
+    k: usize,
+    squared: bool,
+    acc: Accuracy,
+    scale: f64,
+}
+
+fn corners(q: &Parallelogram, r: Rect) -> [V3; 4] {
+    q.piece(r.s, r.t)
+}
+
+fn diameter(c: &[V3; 4]) -> f64 {
+    norm(sub(c[2], c[0])).max(norm(sub(c[3], c[1])))
+}
+
+impl Ctx<'_> {
+    fn kernel(&self, x: V3, y: V3) -> f64 {
+        let v = crate::kernel::three_d(x, self.qa.n, y, self.qb.n);
+        if self.squared {
+            v * v
+        } else {
+            v
+        }
+    }
+
+    /// Basis values of piece `a` (or `b`) at parameter (s, t), times `w`, into `out[..k²]`.
+    fn basis(&self, of_a: bool, s: f64, t: f64, w: f64, out: &mut [f64]) {
+        let k = self.k;
+        let p = if of_a { &self.a } else { &self.b };
+        let mut ps = [0.0; MAX_K];
+        let mut pt = [0.0; MAX_K];
+        legendre((s - p.s[0]) / (p.s[1] - p.s[0]), &mut ps[..k]);
+        legendre((t - p.t[0]) / (p.t[1] - p.t[0]), &mut pt[..k]);
+        for q in 0..k {
+            for r in 0..k {
+                out[q * k + r] = w * pt[q] * ps[r];
+            }
+        }
+    }
+
+    /// Far apart: a tensor rule. Near but apart: both pieces split in four, until the sixteen
+    /// pairs are far relative to their size. Touching (or nearly): outer and inner integrals.
+    fn pair(&self, ra: Rect, rb: Rect, depth: u32, out: &mut [f64]) {
+        let ca = corners(self.qa, ra);
+        let cb = corners(self.qb, rb);
+        let size = diameter(&ca).max(diameter(&cb));
+        let dist = quad_quad(&ca, self.qa.n, &cb, self.qb.n);
+        if dist >= size {
+            let q = points(dist, size, self.acc.digits)
+                .max(self.acc.q_min)
+                .min(MAX_Q);
+            self.far(ra, rb, q, out);
+        } else if dist > 0.5 * size && depth < 2 {
+            for ha in ra.halves_s() {
+                for a in ha.halves_t() {
+                    for hb in rb.halves_s() {
+                        for b in hb.halves_t() {
+                            self.pair(a, b, depth + 1, out);
+                        }
+                    }
+                }
+            }
+        } else {
+            self.outer(ra, rb, &cb, 0, out);
+        }
+    }
+
+    /// Tensor rule: q² points on each piece.
+    fn far(&self, ra: Rect, rb: Rect, q: usize, out: &mut [f64]) {
+        let kk = self.k * self.k;
+        let rule = Rule::gauss(q);
+        let mut phi_b = vec![0.0; q * q * kk];
+        let mut ys = vec![[0.0; 3]; q * q];
+        let mut n = 0;
+        for (t, wt) in rule.mapped(rb.t[0], rb.t[1]) {
+            for (s, ws) in rule.mapped(rb.s[0], rb.s[1]) {
+                self.basis(false, s, t, ws * wt, &mut phi_b[n * kk..(n + 1) * kk]);
+                ys[n] = self.qb.at(s, t);
+                n += 1;
+            }
+        }
+        let mut phi_a = [0.0; MAX_K * MAX_K];
+        let mut tmp = [0.0; MAX_K * MAX_K];
+        for (t, wt) in rule.mapped(ra.t[0], ra.t[1]) {
+            for (s, ws) in rule.mapped(ra.s[0], ra.s[1]) {
+                let x = self.qa.at(s, t);
+                tmp[..kk].fill(0.0);
+                for (y, phi) in ys[..n].iter().zip(phi_b.chunks_exact(kk)) {
+                    let kv = self.kernel(x, *y);
+                    if kv != 0.0 {
+                        for c in 0..kk {
+                            tmp[c] += kv * phi[c];
+                        }
+                    }
+                }
+                self.basis(true, s, t, ws * wt * self.scale, &mut phi_a[..kk]);
+                for r in 0..kk {
+                    for c in 0..kk {
+                        out[r * kk + c] += phi_a[r] * tmp[c];
+                    }
+                }
+            }
+        }
+    }
+
+    /// The outer integral over `ra`, split toward `rb` where the distance changes.
+    fn outer(&self, ra: Rect, rb: Rect, cb: &[V3; 4], depth: u32, out: &mut [f64]) {
+        let ca = corners(self.qa, ra);
+        let dist = |r: &Rect| quad_quad(&corners(self.qa, *r), self.qa.n, cb, self.qb.n);
+        // distance to the nearest corner of the target: the integrand also varies fast next
+        // to the ends of a shared edge
+        let vertex = |r: &Rect| {
+            let c = corners(self.qa, *r);
+            cb.iter()
+                .map(|v| point_quad(*v, &c, self.qa.n))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let d = quad_quad(&ca, self.qa.n, cb, self.qb.n);
+        let dv = vertex(&ra);
+        let ext_s = norm(sub(ca[1], ca[0]));
+        let ext_t = norm(sub(ca[3], ca[0]));
+        if depth < self.acc.outer_depth && (d < ext_s || d < ext_t) {
+            let hs = ra.halves_s();
+            let ht = ra.halves_t();
+            let toward = |h: &[Rect; 2], near: f64, ext: f64, f: &dyn Fn(&Rect) -> f64| {
+                near < ext && (f(&h[0]) - f(&h[1])).abs() > 0.1 * ext
+            };
+            let split_s = toward(&hs, d, ext_s, &dist) || dv < ext_s;
+            let split_t = toward(&ht, d, ext_t, &dist) || dv < ext_t;
+            // neither half is farther, yet the target is closer than the piece is wide: it
+            // meets the piece's interior (a box standing on a floor cell)
+            let inside = d < ext_s.min(ext_t);
+            match (split_s, split_t) {
+                (true, false) => {
+                    return hs
+                        .iter()
+                        .for_each(|r| self.outer(*r, rb, cb, depth + 1, out))
+                }
+                (false, true) => {
+                    return ht
+                        .iter()
+                        .for_each(|r| self.outer(*r, rb, cb, depth + 1, out))
+                }
+                (true, true) => return self.quarters(ra, rb, cb, depth, out),
+                (false, false) if inside => return self.quarters(ra, rb, cb, depth, out),
+                (false, false) => {}
+            }
+        }
+        let kk = self.k * self.k;
+        let size = ext_s.max(ext_t);
+        let q = points(d, size, self.acc.digits)
+            .max(self.acc.q_min)
+            .clamp(2, 6);
+        let rule = Rule::gauss(q);
+        let mut tmp = [0.0; MAX_K * MAX_K];
+        let mut phi_a = [0.0; MAX_K * MAX_K];
+        for (t, wt) in rule.mapped(ra.t[0], ra.t[1]) {
+            for (s, ws) in rule.mapped(ra.s[0], ra.s[1]) {
+                let x = self.qa.at(s, t);
+                if self.qb.side(x) <= 0.0 {
+                    continue;
+                }
+                tmp[..kk].fill(0.0);
+                self.inner_subtracted(x, rb, &mut tmp[..kk]);
+                self.basis(true, s, t, ws * wt * self.scale, &mut phi_a[..kk]);
+                for r in 0..kk {
+                    for c in 0..kk {
+                        out[r * kk + c] += phi_a[r] * tmp[c];
+                    }
+                }
+            }
+        }
+    }
+
+    fn quarters(&self, ra: Rect, rb: Rect, cb: &[V3; 4], depth: u32, out: &mut [f64]) {
+        for h in ra.halves_s() {
+            for r in h.halves_t() {
+                self.outer(r, rb, cb, depth + 1, out);
+            }
+        }
+    }
+
+    /// ∫_rb K(x, y) N_j(y) dy with the singularity subtracted: N_j(y0) ∫ K (the point-to-
+    /// polygon form factor in closed form) plus ∫ K (N_j(y) − N_j(y0)), whose integrand vanishes
+    /// at y0, the point of the piece nearest x; for order 0 the first term is all.
+    fn inner_subtracted(&self, x: V3, rb: Rect, out: &mut [f64]) {
+        if self.squared {
+            return self.inner(x, rb, 0, None, out);
+        }
+        let cb = corners(self.qb, rb);
+        let f = point_polygon(x, self.qa.n, &cb) / self.qb.area;
+        let kk = self.k * self.k;
+        let (s, t) = self.qb.params(x);
+        let (s, t) = (s.clamp(rb.s[0], rb.s[1]), t.clamp(rb.t[0], rb.t[1]));
+        let mut base = [0.0; MAX_K * MAX_K];
+        self.basis(false, s, t, 1.0, &mut base[..kk]);
+        for c in 0..kk {
+            out[c] += f * base[c];
+        }
+        if self.k > 1 {
+            self.inner(x, rb, 0, Some(&base[..kk]), out);
+        }
+    }
+
+    /// ∫_rb K(x, y) (N_j(y) − base_j) dy, split as a quadtree around x.
+    fn inner(&self, x: V3, rb: Rect, depth: u32, base: Option<&[f64]>, out: &mut [f64]) {
+        let cb = corners(self.qb, rb);
+        let diam = diameter(&cb);
+        let d = point_quad(x, &cb, self.qb.n);
+        if d < diam && depth < self.acc.inner_depth {
+            for h in rb.halves_s() {
+                for r in h.halves_t() {
+                    self.inner(x, r, depth + 1, base, out);
+                }
+            }
+            return;
+        }
+        let kk = self.k * self.k;
+        // at the depth limit the piece is still near x: what is left is a small part of the
+        // integral, which a modest rule takes
+        let q = if d < diam {
+            self.acc.q_min.max(4)
+        } else {
+            points(d, diam, self.acc.digits).max(self.acc.q_min)
+        }
+        .min(MAX_Q);
+        let rule = Rule::gauss(q);
+        let mut phi = [0.0; MAX_K * MAX_K];
+        for (t, wt) in rule.mapped(rb.t[0], rb.t[1]) {
+            for (s, ws) in rule.mapped(rb.s[0], rb.s[1]) {
+                let kv = self.kernel(x, self.qb.at(s, t));
+                if kv == 0.0 {
+                    continue;
+                }
+                let w = ws * wt * kv;
+                self.basis(false, s, t, w, &mut phi[..kk]);
+                match base {
+                    Some(b) => (0..kk).for_each(|c| out[c] += phi[c] - w * b[c]),
+                    None => (0..kk).for_each(|c| out[c] += phi[c]),
+                }
+            }
+        }
+    }
+}
+
+/// The form factor from a point x with normal n to a convex polygon facing it, in closed form
+/// (Lambert 1760; Baum, Rushmeier and Winget 1989, eq. (3)): (1/2π) Σ γ_i n·(R_i × R_i+1)/|…|,
+/// R_i the vectors to the vertices and γ_i the angles between them. The polygon is first clipped
+/// to the half-space in front of x.
+pub fn point_polygon(x: V3, n: V3, poly: &[V3; 4]) -> f64 {
+    let mut clipped: smallvec::SmallVec<[V3; 8]> = smallvec::SmallVec::new();
+    for i in 0..4 {
+        let (a, b) = (sub(poly[i], x), sub(poly[(i + 1) % 4], x));
+        let (da, db) = (dot(a, n), dot(b, n));
+        if da > 0.0 {
+            clipped.push(a);
+        }
+        if (da > 0.0) != (db > 0.0) {
+            let t = da / (da - db);
+            clipped.push([
+                a[0] + t * (b[0] - a[0]),
+                a[1] + t * (b[1] - a[1]),
+                a[2] + t * (b[2] - a[2]),
+            ]);
+        }
+    }
+    let m = clipped.len();
+    if m < 3 {
+        return 0.0;
+    }
+    let mut sum = 0.0;
+    for i in 0..m {
+        let (a, b) = (clipped[i], clipped[(i + 1) % m]);
+        let c = cross(a, b);
+        let lc = norm(c);
+        if lc > 0.0 {
+            sum += lc.atan2(dot(a, b)) * dot(n, c) / lc;
+        }
+    }
+    sum.abs() / (2.0 * std::f64::consts::PI)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    fn unit(corners: [V3; 4]) -> Parallelogram {
+        Parallelogram::new(&corners)
+    }
+
+    /// Howell's C-11: directly opposed parallel rectangles a × b at distance c.
+    pub fn parallel_opposed(a: f64, b: f64, c: f64) -> f64 {
+        let (x, y) = (a / c, b / c);
+        let (x1, y1) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
+        2.0 / (PI * x * y)
+            * (((1.0 + x * x) * (1.0 + y * y) / (1.0 + x * x + y * y))
+                .sqrt()
+                .ln()
+                + x * y1 * (x / y1).atan()
+                + y * x1 * (y / x1).atan()
+                - x * x.atan()
+                - y * y.atan())
+    }
+
+    /// Howell's C-14: perpendicular rectangles with a common edge of length l, widths w (the
+    /// emitter) and h: F from the w × l rectangle to the h × l one.
+    pub fn perpendicular_common_edge(w: f64, h: f64, l: f64) -> f64 {
+        let (hh, ww) = (h / l, w / l);
+        let a = (1.0 + hh * hh) * (1.0 + ww * ww) / (1.0 + hh * hh + ww * ww);
+        let b = ww * ww * (1.0 + hh * hh + ww * ww) / ((1.0 + ww * ww) * (hh * hh + ww * ww));
+        let c = hh * hh * (1.0 + hh * hh + ww * ww) / ((1.0 + hh * hh) * (hh * hh + ww * ww));
+        1.0 / (PI * ww)
+            * (ww * (1.0 / ww).atan() + hh * (1.0 / hh).atan()
+                - (hh * hh + ww * ww).sqrt() * (1.0 / (hh * hh + ww * ww).sqrt()).atan()
+                + 0.25 * (a * b.powf(ww * ww) * c.powf(hh * hh)).ln())
+    }
+
+    fn form_factor(quads: &[Parallelogram]) -> f64 {
+        let mut out = [0.0];
+        block(
+            quads,
+            Piece::whole(0),
+            Piece::whole(1),
+            Integrand::Galerkin { k: 1 },
+            Accuracy::fine(4),
+            &mut out,
+        );
+        // T = ∫∫K / √(A_a A_b) = F_ab √(A_a / A_b)
+        out[0] * (quads[1].area / quads[0].area).sqrt()
+    }
+
+    #[test]
+    fn parallel_unit_squares_match_c11() {
+        let floor = unit([
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ]);
+        for c in [0.25, 1.0, 3.0] {
+            let top = unit([[0.0, 0.0, c], [0.0, 1.0, c], [1.0, 1.0, c], [1.0, 0.0, c]]);
+            let f = form_factor(&[floor, top]);
+            let want = parallel_opposed(1.0, 1.0, c);
+            assert!((f - want).abs() < 1e-8, "c={c}: {f} vs {want}");
+        }
+        assert!((parallel_opposed(1.0, 1.0, 1.0) - 0.199825).abs() < 1e-6);
+    }
+
+    #[test]
+    fn perpendicular_unit_squares_match_c14() {
+        let floor = unit([
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ]);
+        let wall = unit([
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+        ]);
+        let f = form_factor(&[floor, wall]);
+        let want = perpendicular_common_edge(1.0, 1.0, 1.0);
+        assert!((want - 0.200044).abs() < 1e-6, "{want}");
+        assert!((f - want).abs() < 1e-6, "{f} vs {want}");
+    }
+
+    #[test]
+    fn reciprocity_of_linear_blocks() {
+        // T_ab = T_baᵀ for any order, near or far
+        let floor = unit([
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ]);
+        let wall = unit([
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+        ]);
+        let quads = [floor, wall];
+        let (a, b) = (
+            Piece::whole(0),
+            Piece {
+                surface: 1,
+                s: [0.0, 0.5],
+                t: [0.5, 1.0],
+            },
+        );
+        let mut ab = [0.0; 16];
+        let mut ba = [0.0; 16];
+        block(
+            &quads,
+            a,
+            b,
+            Integrand::Galerkin { k: 2 },
+            Accuracy::fine(4),
+            &mut ab,
+        );
+        block(
+            &quads,
+            b,
+            a,
+            Integrand::Galerkin { k: 2 },
+            Accuracy::fine(4),
+            &mut ba,
+        );
+        for r in 0..4 {
+            for c in 0..4 {
+                assert!(
+                    (ab[r * 4 + c] - ba[c * 4 + r]).abs() < 1e-6,
+                    "{r},{c}: {} {}",
+                    ab[r * 4 + c],
+                    ba[c * 4 + r]
+                );
+            }
+        }
+    }
+}
