@@ -214,9 +214,20 @@ pub fn solve_job(
         (SceneKind::Fredholm(_), Method::Hierarchical) => Err(JobError::Unsupported(
             "the hierarchical method solves flatland and 3d scenes, not fredholm equations".into(),
         )),
-        (_, Method::Hierarchical) => Ok(crate::hierarchy::three_d::solve(
-            job, order, resolution, progress,
-        )?),
+        (SceneKind::ThreeD(quads), Method::Hierarchical) => {
+            let mut sol = crate::hierarchy::three_d::solve(job, order, resolution, progress)?;
+            let t = Instant::now();
+            let disc = Discretization {
+                order,
+                cells: resolution,
+                quadrature: job.solver.quadrature,
+            };
+            let (err, left_out) = kernel_error_3d(quads, disc, &sol, progress)?;
+            sol.kernel_error = err;
+            sol.left_out = left_out;
+            sol.timings.insert("metrics".into(), ms(t));
+            Ok(sol)
+        }
         (SceneKind::ThreeD(quads), Method::Projection) => {
             let disc = Discretization {
                 order,

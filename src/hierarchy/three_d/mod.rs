@@ -368,6 +368,14 @@ pub fn solve(
         .flat_map(|l| l.block.iter().map(|v| v.abs()))
         .collect();
     sorted.sort_by(|a, b| b.total_cmp(a));
+    // Σ‖block‖² per pair of surfaces, for eq. (5) by Parseval over the link blocks
+    let surfaces = h.quads.len();
+    let mut kept_squares = vec![0.0; surfaces * surfaces];
+    for l in &h.links {
+        let (r, s) = (&h.elements[l.recv as usize], &h.elements[l.src as usize]);
+        kept_squares[r.piece.surface * surfaces + s.piece.surface] +=
+            l.block.iter().map(|v| v * v).sum::<f64>();
+    }
     let magnitudes = crate::compress::sample_ranks(sorted.len(), job.output.coefficients)
         .into_iter()
         .map(|r| (r, sorted[r]))
@@ -399,7 +407,7 @@ pub fn solve(
         left_out: Vec::new(),
         hierarchy: Some(h.stats()),
         timings,
-        kept_squares: Vec::new(),
+        kept_squares,
         kernel_evaluations: None,
     })
 }
