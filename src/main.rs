@@ -123,6 +123,11 @@ fn render(doc: &Path, out: &Path) -> ExitCode {
         std::fs::create_dir_all(out.join("surfaces")).map_err(io)?;
         std::fs::write(out.join("result.json"), json).map_err(io)?;
         for (name, bytes) in images.files() {
+            // A surface name is one file name: separators become '_'.
+            let name = match name.strip_prefix("surfaces/") {
+                Some(file) => format!("surfaces/{}", file.replace(['/', '\\'], "_")),
+                None => name,
+            };
             std::fs::write(out.join(&name), bytes).map_err(io)?;
         }
         println!("wrote {}", out.display());

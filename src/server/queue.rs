@@ -98,10 +98,27 @@ impl Links {
             coefficients: format!("{base}/coefficients.png"),
             surfaces: surfaces
                 .iter()
-                .map(|s| (s.clone(), format!("{base}/surfaces/{s}.png")))
+                .map(|s| {
+                    (
+                        s.clone(),
+                        format!("{base}/surfaces/{}.png", encode_segment(s)),
+                    )
+                })
                 .collect(),
         }
     }
+}
+
+/// Percent-encodes a surface name for a URL path segment (unreserved characters stay).
+fn encode_segment(name: &str) -> String {
+    name.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => {
+                (b as char).to_string()
+            }
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
 }
 
 /// The failure of a job, as a problem document.
