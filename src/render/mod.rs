@@ -14,6 +14,7 @@ use crate::field::Field;
 use crate::job::Outcome;
 use crate::scene::{Exposure, Job, SceneKind};
 use image::{ImageEncoder, Rgb, RgbImage};
+use rayon::prelude::*;
 use std::sync::OnceLock;
 
 /// The camera renderer for 3D scenes: `(job, outcome, width, height) -> image`.
@@ -57,34 +58,44 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
     let spec = job.output.image;
     let names = job.surface_names();
     let white = white_point(job, &outcome.fields);
-    let surface_images: Vec<RgbImage> = outcome
-        .fields
-        .iter()
-        .map(|f| surface_image(f, white, surface_size(f)))
-        .collect();
-    let main = match &job.scene.kind {
-        SceneKind::ThreeD(_) => match CAMERA.get() {
-            Some(camera) => camera(job, outcome, spec.width, spec.height),
-            None => plot::surface_grid(&names, &outcome.fields, white, spec.width, spec.height),
-        },
-        _ => plot::radiosity(job, &names, &outcome.fields, spec.width, spec.height),
+    // Independent images, drawn in parallel; each is deterministic on its own.
+    let main = || {
+        let img = match &job.scene.kind {
+            SceneKind::ThreeD(_) => match CAMERA.get() {
+                Some(camera) => camera(job, outcome, spec.width, spec.height),
+                None => plot::surface_grid(&names, &outcome.fields, white, spec.width, spec.height),
+            },
+            _ => plot::radiosity(job, &names, &outcome.fields, spec.width, spec.height),
+        };
+        encode_png(&img)
     };
-    let sparsity = match &outcome.picture {
-        Some(p) => plot::sparsity(p),
-        None => plot::message(
-            640,
-            560,
-            "No kernel matrix: this method builds links, not a matrix",
-        ),
+    let sparsity = || {
+        encode_png(&match &outcome.picture {
+            Some(p) => plot::sparsity(p),
+            None => plot::message(
+                640,
+                560,
+                "No kernel matrix: this method builds links, not a matrix",
+            ),
+        })
     };
+    let coefficients = || encode_png(&plot::coefficients(&outcome.result.coefficients));
+    let surfaces = || -> Vec<Vec<u8>> {
+        outcome
+            .fields
+            .par_iter()
+            .map(|f| encode_png(&surface_image(f, white, surface_size(f))))
+            .collect()
+    };
+    let ((image, sparsity), (coefficients, surfaces)) = rayon::join(
+        || rayon::join(main, sparsity),
+        || rayon::join(coefficients, surfaces),
+    );
     Images {
-        image: encode_png(&main),
-        sparsity: encode_png(&sparsity),
-        coefficients: encode_png(&plot::coefficients(&outcome.result.coefficients)),
-        surfaces: names
-            .into_iter()
-            .zip(surface_images.iter().map(encode_png))
-            .collect(),
+        image,
+        sparsity,
+        coefficients,
+        surfaces: names.into_iter().zip(surfaces).collect(),
     }
 }
 

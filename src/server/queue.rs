@@ -582,7 +582,8 @@ impl Queue {
                 fraction: 0.0,
             };
         });
-        self.persist(&entry, &[]);
+        // Not written to the store: a job that was running at a crash is queued again, exactly
+        // like one that was waiting, so `queued` on disk says all there is to say.
         let watch = Watch {
             entry: &entry,
             deadline: start + inner.config.job_timeout,
@@ -673,10 +674,6 @@ impl Queue {
         }
         inner.running.fetch_sub(1, Ordering::SeqCst);
         inner.idle.notify_waiters();
-    }
-
-    fn persist(&self, entry: &Entry, files: &[(String, &[u8])]) {
-        self.write(entry, entry.status(), files)
     }
 
     fn write(&self, entry: &Entry, status: JobStatus, files: &[(String, &[u8])]) {
