@@ -296,19 +296,30 @@ pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
         (yr.end - yr.start).max(1) as u32,
     );
     let (llo, lhi) = (lo.log10(), hi.log10());
-    for py in 0..ph {
-        let row = (py as usize * p.side / ph as usize).min(p.side - 1);
-        for px in 0..pw {
-            let col = (px as usize * p.side / pw as usize).min(p.side - 1);
-            let v = p.values[row * p.side + col];
-            let color = if v <= 0.0 || v < p.cut {
-                RGBColor(255, 255, 255)
+    // One colour per picture cell, then nearest-neighbour scaling onto the plotting area.
+    let colors: Vec<[u8; 3]> = p
+        .values
+        .iter()
+        .map(|&v| {
+            if v <= 0.0 || v < p.cut {
+                [255, 255, 255]
             } else {
-                viridis((v.log10() - llo) / (lhi - llo))
-            };
-            if x0 + px < w && y0 + py < h {
-                img.put_pixel(x0 + px, y0 + py, image::Rgb([color.0, color.1, color.2]));
+                let c = viridis((v.log10() - llo) / (lhi - llo));
+                [c.0, c.1, c.2]
             }
+        })
+        .collect();
+    let cols: Vec<usize> = (0..pw)
+        .map(|px| (px as usize * p.side / pw as usize).min(p.side - 1))
+        .collect();
+    for py in 0..ph.min(h.saturating_sub(y0)) {
+        let row = (py as usize * p.side / ph as usize).min(p.side - 1);
+        for (px, &col) in cols.iter().enumerate().take(w.saturating_sub(x0) as usize) {
+            img.put_pixel(
+                x0 + px as u32,
+                y0 + py,
+                image::Rgb(colors[row * p.side + col]),
+            );
         }
     }
     img
