@@ -176,3 +176,68 @@ pub fn encode_png(img: &RgbImage) -> Vec<u8> {
     .expect("encoding a PNG into memory cannot fail");
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A constant 2D field: order 0, `cells²` cells, every cell `v` (φ_0 = 1 on a unit cell).
+    fn flat_square(cells: usize, v: [f64; 3]) -> Field {
+        Field::uniform_square(0, cells, &vec![v; cells * cells])
+    }
+
+    #[test]
+    fn a_3d_image_without_a_camera_tiles_every_surface() {
+        let fields = vec![
+            flat_square(2, [1.0, 0.0, 0.0]),
+            flat_square(2, [0.0, 0.0, 1.0]),
+        ];
+        let names = vec!["red".to_string(), "blue".to_string()];
+        let img = plot::surface_grid(&names, &fields, 1.0, 200, 100);
+        assert_eq!((img.width(), img.height()), (200, 100));
+        // Two columns, one row: the middle of each tile has its surface's colour.
+        assert_eq!(img.get_pixel(50, 60).0, [255, 0, 0]);
+        assert_eq!(img.get_pixel(150, 60).0, [0, 0, 255]);
+    }
+
+    #[test]
+    fn surface_images_map_b_to_colour_with_t_upwards() {
+        // B = 1 on the lower half (t < 1/2), 0 above.
+        let mut local = vec![[0.0; 3]; 4];
+        local[0] = [1.0; 3];
+        local[1] = [1.0; 3];
+        let f = Field::uniform_square(0, 2, &local);
+        let img = surface_image(&f, 1.0, (10, 10));
+        assert_eq!(img.get_pixel(5, 9).0, [255, 255, 255]);
+        assert_eq!(img.get_pixel(5, 0).0, [0, 0, 0]);
+        assert_eq!(tone([0.25, 2.0, -1.0], 1.0).0, [136, 255, 0]);
+    }
+
+    #[test]
+    fn charts_are_deterministic() {
+        let c = crate::result::Coefficients {
+            basis_size: 4,
+            matrix_entries: 16,
+            kept_entries: 8,
+            sparsity_ratio: 0.5,
+            cut: 1e-3,
+            sorted_magnitudes: vec![1.0, 0.1, 1e-3, 1e-6, 0.0],
+            sorted_ranks: vec![0, 4, 8, 12, 15],
+        };
+        let a = encode_png(&plot::coefficients(&c));
+        let b = encode_png(&plot::coefficients(&c));
+        assert_eq!(a, b);
+        let p = crate::compress::MagnitudePicture {
+            side: 4,
+            values: (0..16).map(|i| 10f64.powi(-(i % 5))).collect(),
+            block: 1,
+            cut: 1e-3,
+        };
+        let s = plot::sparsity(&p);
+        assert_eq!(encode_png(&s), encode_png(&plot::sparsity(&p)));
+        // Entries below the cut are white; the largest is the top of the colour map.
+        let colors: std::collections::HashSet<[u8; 3]> = s.pixels().map(|p| p.0).collect();
+        let top = plot::viridis(1.0);
+        assert!(colors.contains(&[top.0, top.1, top.2]));
+    }
+}
