@@ -399,8 +399,10 @@ impl Queue {
     }
 
     /// Queues a validated document, or answers the job that already has this document.
-    /// Blocks on the store: call from a blocking context.
-    pub fn submit(&self, document: Value, job: Job) -> Result<Submitted, Problem> {
+    /// `durable`: the job is on disk before this returns (a 202 promises that); otherwise it
+    /// is written lazily and becomes durable with the next durable write (at the latest its
+    /// own result). Blocks on the store: call from a blocking context.
+    pub fn submit(&self, document: Value, job: Job, durable: bool) -> Result<Submitted, Problem> {
         let inner = &self.inner;
         let id = job_id(&document);
         let mut entries = inner.entries.lock().expect("entries lock");
@@ -434,7 +436,11 @@ impl Queue {
             document: document.clone(),
             status: status.clone(),
         };
-        inner.store.put_job(&id, &record).map_err(internal)?;
+        if durable {
+            inner.store.put_job(&id, &record).map_err(internal)?;
+        } else {
+            inner.store.put_job_lazily(&id, &record).map_err(internal)?;
+        }
         let entry = Arc::new(Entry {
             id: id.clone(),
             document,
