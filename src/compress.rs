@@ -14,24 +14,16 @@ use rayon::prelude::*;
 /// Transforms one vector of a surface in place (scaling → wavelet).
 pub fn forward_surface(layout: Layout, data: &mut [f64], scratch: &mut Vec<f64>) {
     match layout {
-        Layout::Line { cells, k } => {
-            transform::forward(data, cells, Filters::of_order(k - 1), 1, scratch)
-        }
-        Layout::Square { cells, k } => {
-            transform::forward_square(data, cells, Filters::of_order(k - 1), scratch)
-        }
+        Layout::Line { cells, k } => transform::forward(data, cells, Filters::of_order(k - 1), 1, scratch),
+        Layout::Square { cells, k } => transform::forward_square(data, cells, Filters::of_order(k - 1), scratch),
     }
 }
 
 /// Transforms one vector of a surface in place (wavelet → scaling).
 pub fn inverse_surface(layout: Layout, data: &mut [f64], scratch: &mut Vec<f64>) {
     match layout {
-        Layout::Line { cells, k } => {
-            transform::inverse(data, cells, Filters::of_order(k - 1), 1, scratch)
-        }
-        Layout::Square { cells, k } => {
-            transform::inverse_square(data, cells, Filters::of_order(k - 1), scratch)
-        }
+        Layout::Line { cells, k } => transform::inverse(data, cells, Filters::of_order(k - 1), 1, scratch),
+        Layout::Square { cells, k } => transform::inverse_square(data, cells, Filters::of_order(k - 1), scratch),
     }
 }
 
@@ -110,9 +102,7 @@ impl Csr {
     }
     pub fn diagonal(&self, i: usize) -> f64 {
         let (c, v) = self.row(i);
-        c.iter()
-            .position(|&j| j as usize == i)
-            .map_or(0.0, |p| v[p])
+        c.iter().position(|&j| j as usize == i).map_or(0.0, |p| v[p])
     }
 }
 
@@ -135,11 +125,7 @@ fn cut_of(keep: Keep, sorted_desc: &[f64]) -> (usize, f64) {
         Keep::Fraction(f) => ((f * sorted_desc.len() as f64).ceil() as usize).min(nonzero),
         Keep::Threshold(t) => sorted_desc.partition_point(|&v| v >= t && v > 0.0),
     };
-    let cut = if count == 0 {
-        f64::INFINITY
-    } else {
-        sorted_desc[count - 1]
-    };
+    let cut = if count == 0 { f64::INFINITY } else { sorted_desc[count - 1] };
     (count, cut)
 }
 
@@ -189,11 +175,10 @@ pub fn threshold(m: &Dense, keep: Keep, sorted_desc: &[f64]) -> Kept {
     for i in 0..n {
         for (j, &v) in m.row(i).iter().enumerate() {
             let a = v.abs();
-            let keep_it = a > cut
-                || (a == cut && a > 0.0 && ties_left > 0 && {
-                    ties_left -= 1;
-                    true
-                });
+            let keep_it = a > cut || (a == cut && a > 0.0 && ties_left > 0 && {
+                ties_left -= 1;
+                true
+            });
             if keep_it {
                 csr.cols.push(j as u32);
                 csr.vals.push(v);
@@ -205,11 +190,7 @@ pub fn threshold(m: &Dense, keep: Keep, sorted_desc: &[f64]) -> Kept {
     }
     Kept {
         csr,
-        cut: if matches!(keep, Keep::All) || count == 0 {
-            0.0
-        } else {
-            cut
-        },
+        cut: if matches!(keep, Keep::All) || count == 0 { 0.0 } else { cut },
         dropped_squares: dropped,
     }
 }

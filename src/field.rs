@@ -189,11 +189,7 @@ impl Field {
     pub fn cell_means(&self, grid: usize) -> Vec<[f64; 3]> {
         let g = grid as f64;
         let span = |i: usize| [i as f64 / g, (i + 1) as f64 / g];
-        let area = if self.dims == 2 {
-            1.0 / (g * g)
-        } else {
-            1.0 / g
-        };
+        let area = if self.dims == 2 { 1.0 / (g * g) } else { 1.0 / g };
         let rows = if self.dims == 2 { grid } else { 1 };
         let mut out = Vec::with_capacity(grid * rows);
         for r in 0..rows {
@@ -240,12 +236,7 @@ mod tests {
         for ct in 0..2 {
             for _cs in 0..2 {
                 let mid_t = (ct as f64 + 0.5) * h;
-                local.extend([
-                    [1.0 + mid_t; 3],
-                    [0.0; 3],
-                    [h / (2.0 * 3f64.sqrt()); 3],
-                    [0.0; 3],
-                ]);
+                local.extend([[1.0 + mid_t; 3], [0.0; 3], [h / (2.0 * 3f64.sqrt()); 3], [0.0; 3]]);
             }
         }
         let f = Field::uniform_square(1, 2, &local);

@@ -109,11 +109,7 @@ impl Line {
 pub fn point_segment_distance(p: V2, a: V2, b: V2) -> f64 {
     let d = b - a;
     let l2 = d.dot(d);
-    let t = if l2 > 0.0 {
-        ((p - a).dot(d) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
+    let t = if l2 > 0.0 { ((p - a).dot(d) / l2).clamp(0.0, 1.0) } else { 0.0 };
     (a + d * t - p).norm()
 }
 
@@ -164,19 +160,8 @@ mod tests {
     #[test]
     fn distances() {
         let o = V2::new(0.0, 0.0);
-        assert_eq!(
-            segment_distance(o, V2::new(1.0, 0.0), V2::new(0.0, 1.0), V2::new(1.0, 1.0)),
-            1.0
-        );
-        assert_eq!(
-            segment_distance(o, V2::new(1.0, 0.0), o, V2::new(0.0, 1.0)),
-            0.0
-        );
-        assert!(segments_intersect(
-            o,
-            V2::new(1.0, 1.0),
-            V2::new(0.0, 1.0),
-            V2::new(1.0, 0.0)
-        ));
+        assert_eq!(segment_distance(o, V2::new(1.0, 0.0), V2::new(0.0, 1.0), V2::new(1.0, 1.0)), 1.0);
+        assert_eq!(segment_distance(o, V2::new(1.0, 0.0), o, V2::new(0.0, 1.0)), 0.0);
+        assert!(segments_intersect(o, V2::new(1.0, 1.0), V2::new(0.0, 1.0), V2::new(1.0, 0.0)));
     }
 }

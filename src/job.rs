@@ -74,13 +74,7 @@ pub struct Solution {
 /// Runs a job.
 pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
     let start = Instant::now();
-    let mut sol = solve_job(
-        job,
-        job.solver.order,
-        job.solver.resolution,
-        job.solver.keep,
-        progress,
-    )?;
+    let mut sol = solve_job(job, job.solver.order, job.solver.resolution, job.solver.keep, progress)?;
     let names = job.surface_names();
     let measure = surface_measures(job);
     let t = Instant::now();
@@ -92,16 +86,12 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
             };
             let exact = f.exact.as_ref().expect("validated: exact present");
             let [a, b] = f.domain;
-            let (d, n) =
-                metrics::l2_against(&sol.fields[0], b - a, |s| exact.eval(a + s * (b - a), 0.0));
+            let (d, n) = metrics::l2_against(&sol.fields[0], b - a, |s| exact.eval(a + s * (b - a), 0.0));
             (Some(d / n), Some("exact".to_string()))
         }
         Some(Reference::Finer { order, resolution }) => {
             progress.report(Phase::Reference, 0.0);
-            let quiet = Relabel {
-                inner: progress,
-                phase: Phase::Reference,
-            };
+            let quiet = Relabel { inner: progress, phase: Phase::Reference };
             let reference = solve_job(job, order, resolution, Keep::All, &quiet)?;
             let (mut d, mut n) = (0.0, 0.0);
             for (i, f) in sol.fields.iter().enumerate() {
@@ -109,10 +99,7 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
                 d += di;
                 n += ni;
             }
-            (
-                Some(d / n),
-                Some(format!("order {order}, resolution {resolution}")),
-            )
+            (Some(d / n), Some(format!("order {order}, resolution {resolution}")))
         }
     };
     sol.timings.insert("reference".into(), ms(t));
@@ -128,8 +115,7 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
             cells: f.cell_means(job.output.grid),
         })
         .collect();
-    let (sorted_ranks, sorted_magnitudes) =
-        compress::sample_ranks(&sol.sorted, job.output.coefficients);
+    let (sorted_ranks, sorted_magnitudes) = compress::sample_ranks(&sol.sorted, job.output.coefficients);
     sol.timings.insert("total".into(), ms(start));
     let result = JobResult {
         scene: job.scene.name.clone(),
@@ -180,13 +166,11 @@ pub fn solve_job(
     progress: &dyn Progress,
 ) -> Result<Solution, JobError> {
     match (&job.scene.kind, job.solver.method) {
-        (SceneKind::ThreeD(_), _) | (_, Method::Hierarchical) => {
-            Err(JobError::Unsupported(format!(
-                "{} scenes with the {:?} method are not available in this build",
-                job.scene.kind.name(),
-                job.solver.method
-            )))
-        }
+        (SceneKind::ThreeD(_), _) | (_, Method::Hierarchical) => Err(JobError::Unsupported(format!(
+            "{} scenes with the {:?} method are not available in this build",
+            job.scene.kind.name(),
+            job.solver.method
+        ))),
         _ => {
             let disc = Discretization {
                 order,
@@ -335,22 +319,14 @@ fn kernel_error_1d(
                     total += rule.integrate2(sa, sb, |x, y| f.kernel.eval(x, y).powi(2));
                 }
             }
-            Ok((
-                metrics::kernel_relative_error(total, squares.iter().sum()),
-                vec![],
-            ))
+            Ok((metrics::kernel_relative_error(total, squares.iter().sum()), vec![]))
         }
         SceneKind::ThreeD(_) => Ok((sol.kernel_error, vec![])),
     }
 }
 
 /// Per-surface fields from scaling-basis coefficients: N = φ_p(ŝ)[φ_q(t̂)] / √(h^d · measure).
-pub fn fields_from_scaling(
-    layout: Layout,
-    order: usize,
-    measure: &[f64],
-    coeffs: &[Rgb],
-) -> Vec<Field> {
+pub fn fields_from_scaling(layout: Layout, order: usize, measure: &[f64], coeffs: &[Rgb]) -> Vec<Field> {
     let per = layout.len();
     coeffs
         .chunks(per)

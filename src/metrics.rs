@@ -44,11 +44,7 @@ pub fn l2_difference(a: &Field, b: &Field, measure: f64) -> (f64, f64) {
     for r in 0..rows {
         for c in 0..res {
             let s = [c as f64 * h, (c + 1) as f64 * h];
-            let t = if a.dims == 2 {
-                [r as f64 * h, (r + 1) as f64 * h]
-            } else {
-                [0.0, 1.0]
-            };
+            let t = if a.dims == 2 { [r as f64 * h, (r + 1) as f64 * h] } else { [0.0, 1.0] };
             let mut add = |x: f64, y: f64, w: f64| {
                 let (va, vb) = (a.eval(x, y), b.eval(x, y));
                 for ch in 0..3 {
@@ -87,12 +83,7 @@ pub fn l2_against(field: &Field, measure: f64, exact: impl Fn(f64) -> f64) -> (f
 }
 
 /// Emitted and absorbed power per channel from the fields of E and H and the surfaces' ρ.
-pub fn energy(
-    emission: &[Field],
-    irradiance: &[Field],
-    rho: &[Rgb],
-    measure: &[f64],
-) -> EnergyBalance {
+pub fn energy(emission: &[Field], irradiance: &[Field], rho: &[Rgb], measure: &[f64]) -> EnergyBalance {
     let mut emitted = [0.0; 3];
     let mut absorbed = [0.0; 3];
     for i in 0..emission.len() {
@@ -103,13 +94,7 @@ pub fn energy(
             absorbed[c] += (1.0 - rho[i][c]) * h[c] * measure[i];
         }
     }
-    let balance = [0, 1, 2].map(|c| {
-        if emitted[c] > 0.0 {
-            absorbed[c] / emitted[c]
-        } else {
-            0.0
-        }
-    });
+    let balance = [0, 1, 2].map(|c| if emitted[c] > 0.0 { absorbed[c] / emitted[c] } else { 0.0 });
     EnergyBalance {
         emitted,
         absorbed,

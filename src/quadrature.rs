@@ -73,7 +73,12 @@ impl Rule {
     }
 
     /// The tensor rule on [a0,b0]×[a1,b1]: ∫∫ f(s, t) ds dt.
-    pub fn integrate2(&self, s: [f64; 2], t: [f64; 2], mut f: impl FnMut(f64, f64) -> f64) -> f64 {
+    pub fn integrate2(
+        &self,
+        s: [f64; 2],
+        t: [f64; 2],
+        mut f: impl FnMut(f64, f64) -> f64,
+    ) -> f64 {
         let mut sum = 0.0;
         for (x, wx) in self.mapped(s[0], s[1]) {
             for (y, wy) in self.mapped(t[0], t[1]) {

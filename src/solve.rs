@@ -64,10 +64,7 @@ pub fn solve(
             if den <= 0.0 {
                 return Err(SolveError::Diverged {
                     iteration: 0,
-                    reason: format!(
-                        "row {i} has ρK_ii = {} ≥ 1: the system is not diagonally solvable",
-                        rho[i][c] * d
-                    ),
+                    reason: format!("row {i} has ρK_ii = {} ≥ 1: the system is not diagonally solvable", rho[i][c] * d),
                 });
             }
             inv_diag[i][c] = 1.0 / den;
@@ -125,10 +122,7 @@ pub fn solve(
         }
         if it % 4 == 0 || rel < settings.tolerance {
             let done = (settings.tolerance.ln() / rel.max(1e-300).ln()).clamp(0.0, 1.0);
-            progress.report(
-                Phase::Solve,
-                done.max(it as f64 / settings.max_iterations as f64),
-            );
+            progress.report(Phase::Solve, done.max(it as f64 / settings.max_iterations as f64));
         }
         if rel < settings.tolerance {
             converged = true;
@@ -201,10 +195,7 @@ pub fn multiply(k: &Csr, b: &[Rgb]) -> Vec<Rgb> {
 }
 
 fn norm(v: &[Rgb]) -> f64 {
-    v.iter()
-        .map(|x| x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
-        .sum::<f64>()
-        .sqrt()
+    v.iter().map(|x| x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sum::<f64>().sqrt()
 }
 
 fn diff_norm(a: &[Rgb], b: &[Rgb]) -> f64 {
@@ -219,10 +210,7 @@ fn diff_norm(a: &[Rgb], b: &[Rgb]) -> f64 {
 /// The change has grown at every one of the last 50 sweeps.
 fn growing(history: &[f64]) -> bool {
     const RUN: usize = 50;
-    history.len() > RUN
-        && history[history.len() - RUN..]
-            .windows(2)
-            .all(|w| w[1] > w[0])
+    history.len() > RUN && history[history.len() - RUN..].windows(2).all(|w| w[1] > w[0])
 }
 
 #[cfg(test)]
@@ -232,11 +220,7 @@ mod tests {
 
     fn csr(dense: &[&[f64]]) -> Csr {
         let n = dense.len();
-        let mut m = Csr {
-            n,
-            row_ptr: vec![0],
-            ..Default::default()
-        };
+        let mut m = Csr { n, row_ptr: vec![0], ..Default::default() };
         for row in dense {
             for (j, v) in row.iter().enumerate() {
                 if *v != 0.0 {
@@ -250,11 +234,7 @@ mod tests {
     }
 
     fn settings(iteration: Iteration) -> Settings {
-        Settings {
-            iteration,
-            tolerance: 1e-14,
-            max_iterations: 500,
-        }
+        Settings { iteration, tolerance: 1e-14, max_iterations: 500 }
     }
 
     /// (I − ρK) B = E with a 2 × 2 system solved by hand.
@@ -294,17 +274,7 @@ mod tests {
         let k = csr(&[&[0.0, 0.99], &[0.99, 0.0]]);
         let rho = vec![[0.99; 3]; 2];
         let e = vec![[1.0; 3]; 2];
-        let s = solve(
-            &k,
-            &rho,
-            &e,
-            Settings {
-                max_iterations: 3,
-                ..settings(Iteration::Jacobi)
-            },
-            &Silent,
-        )
-        .unwrap();
+        let s = solve(&k, &rho, &e, Settings { max_iterations: 3, ..settings(Iteration::Jacobi) }, &Silent).unwrap();
         assert!(!s.converged);
         assert_eq!(s.iterations, 3);
     }

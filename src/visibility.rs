@@ -60,11 +60,7 @@ fn shadow(x: V2, sx: f64, target: &Line, occ: &Line) -> Option<[f64; 2]> {
     } else {
         let at_zero = -s0 / ds;
         let at_top = (top - s0) / ds;
-        let (lo, hi) = if ds > 0.0 {
-            (at_zero, at_top)
-        } else {
-            (at_top, at_zero)
-        };
+        let (lo, hi) = if ds > 0.0 { (at_zero, at_top) } else { (at_top, at_zero) };
         u0 = u0.max(lo);
         u1 = u1.min(hi);
         if u1 <= u0 {

@@ -100,11 +100,7 @@ impl Filters {
     pub fn eval_v1(&self, row: &[f64], x: f64) -> f64 {
         let k = self.k;
         let mut v = vec![0.0; k];
-        let (half, local) = if x < 0.5 {
-            (0, 2.0 * x)
-        } else {
-            (1, 2.0 * x - 1.0)
-        };
+        let (half, local) = if x < 0.5 { (0, 2.0 * x) } else { (1, 2.0 * x - 1.0) };
         legendre(local, &mut v);
         (0..k)
             .map(|q| row[half * k + q] * std::f64::consts::SQRT_2 * v[q])
@@ -189,13 +185,7 @@ mod tests {
         check_pieces(f, 0, |x| -s3 * (4.0 * x - 1.0), |x| s3 * (4.0 * x - 3.0));
         check_pieces(f, 1, |x| 6.0 * x - 1.0, |x| 6.0 * x - 5.0);
         // The slides' printed right half √3(4x − 1) is not orthogonal to constants:
-        let printed = |x: f64| {
-            if x < 0.5 {
-                -s3 * (4.0 * x - 1.0)
-            } else {
-                s3 * (4.0 * x - 1.0)
-            }
-        };
+        let printed = |x: f64| if x < 0.5 { -s3 * (4.0 * x - 1.0) } else { s3 * (4.0 * x - 1.0) };
         assert!(inner(printed, |_| 1.0).abs() > 0.5);
     }
 

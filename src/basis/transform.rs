@@ -100,8 +100,7 @@ pub fn forward_square(data: &mut [f64], n: usize, filters: &Filters, scratch: &m
                 for dt in 0..2 {
                     for ds in 0..2 {
                         let c = ((2 * pt + dt) * len + 2 * ps + ds) * kk;
-                        child[(dt * 2 + ds) * kk..(dt * 2 + ds + 1) * kk]
-                            .copy_from_slice(&data[c..c + kk]);
+                        child[(dt * 2 + ds) * kk..(dt * 2 + ds + 1) * kk].copy_from_slice(&data[c..c + kk]);
                     }
                 }
                 two_by_two(&child, &mut out, filters);
@@ -139,8 +138,7 @@ pub fn inverse_square(data: &mut [f64], n: usize, filters: &Filters, scratch: &m
                 for dt in 0..2 {
                     for ds in 0..2 {
                         let c = ((2 * pt + dt) * len + 2 * ps + ds) * kk;
-                        scratch[c..c + kk]
-                            .copy_from_slice(&children[(dt * 2 + ds) * kk..(dt * 2 + ds + 1) * kk]);
+                        scratch[c..c + kk].copy_from_slice(&children[(dt * 2 + ds) * kk..(dt * 2 + ds + 1) * kk]);
                     }
                 }
             }
@@ -224,8 +222,7 @@ fn two_by_two_inverse(parent: &[f64], children: &mut [f64], f: &Filters) {
                     let mut sum = 0.0;
                     for (fs, rows) in [&f.h, &f.g].into_iter().enumerate() {
                         for pp in 0..k {
-                            sum += rows[pp * 2 * k + ds * k + p]
-                                * along_s[(fs * 2 + dt) * kk + q * k + pp];
+                            sum += rows[pp * 2 * k + ds * k + p] * along_s[(fs * 2 + dt) * kk + q * k + pp];
                         }
                     }
                     children[(dt * 2 + ds) * kk + q * k + p] = sum;
@@ -255,9 +252,7 @@ mod tests {
         let mut s = seed;
         (0..len)
             .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
                 ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
             })
             .collect()
@@ -277,11 +272,7 @@ mod tests {
                     let ny: f64 = y.iter().map(|v| v * v).sum();
                     assert!((nx - ny).abs() < 1e-13 * nx, "Parseval m={m} n={n}");
                     inverse(&mut y, n, f, w, &mut scratch);
-                    let err = x
-                        .iter()
-                        .zip(&y)
-                        .map(|(a, b)| (a - b).abs())
-                        .fold(0.0, f64::max);
+                    let err = x.iter().zip(&y).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
                     assert!(err < 1e-13, "round trip m={m} n={n}: {err}");
                 }
             }
@@ -307,15 +298,9 @@ mod tests {
             let x = (i as f64 + 0.5) / 400.0;
             let cell = (x * n as f64) as usize;
             legendre(x * n as f64 - cell as f64, &mut v);
-            let got: f64 = (0..k)
-                .map(|p| e[cell * k + p] * v[p] * (n as f64).sqrt())
-                .sum();
+            let got: f64 = (0..k).map(|p| e[cell * k + p] * v[p] * (n as f64).sqrt()).sum();
             let y = 2.0 * x - 1.0;
-            let want = if (0.0..1.0).contains(&y) {
-                2f64.sqrt() * f.wavelet(2, y)
-            } else {
-                0.0
-            };
+            let want = if (0.0..1.0).contains(&y) { 2f64.sqrt() * f.wavelet(2, y) } else { 0.0 };
             assert!((got - want).abs() < 1e-12, "x={x}: {got} vs {want}");
         }
         // x² projected on 8 cells is exactly in V₀ for m = 2
@@ -348,11 +333,7 @@ mod tests {
                 let ny: f64 = y.iter().map(|v| v * v).sum();
                 assert!((nx - ny).abs() < 1e-13 * nx);
                 inverse_square(&mut y, n, f, &mut scratch);
-                let err = x
-                    .iter()
-                    .zip(&y)
-                    .map(|(a, b)| (a - b).abs())
-                    .fold(0.0, f64::max);
+                let err = x.iter().zip(&y).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
                 assert!(err < 1e-13, "m={m} n={n}: {err}");
             }
         }

@@ -271,20 +271,15 @@ impl<'g> CellPair<'g> {
 
     /// Adds ∫∫ K φ_p φ_r over the cells (restricted to the front ranges) to `out` (k × k).
     pub fn integrate(&self, front_i: [f64; 2], front_j: [f64; 2], out: &mut [f64]) {
-        let (Some(sa), Some(sb)) = (
-            intersect(self.cell_a, front_i),
-            intersect(self.cell_b, front_j),
-        ) else {
+        let (Some(sa), Some(sb)) = (intersect(self.cell_a, front_i), intersect(self.cell_b, front_j))
+        else {
             return;
         };
         self.sub(sa, sb, 0, out);
     }
 
     fn sub(&self, sa: [f64; 2], sb: [f64; 2], depth: u32, out: &mut [f64]) {
-        let (pa, pb) = (
-            [self.li.at(sa[0]), self.li.at(sa[1])],
-            [self.lj.at(sb[0]), self.lj.at(sb[1])],
-        );
+        let (pa, pb) = ([self.li.at(sa[0]), self.li.at(sa[1])], [self.lj.at(sb[0]), self.lj.at(sb[1])]);
         let la = self.li.len * (sa[1] - sa[0]);
         let lb = self.lj.len * (sb[1] - sb[0]);
         let size = la.max(lb);
@@ -415,12 +410,7 @@ impl<'g> CellPair<'g> {
     /// where x lines up with two of the fixed points (occluder ends, occluder crossings of the
     /// target line, ends of the target range), and where x's distance to the target line equals
     /// an occluder end's.
-    fn breakpoints(
-        &self,
-        sa: [f64; 2],
-        sb: [f64; 2],
-        occ: &[Line],
-    ) -> smallvec::SmallVec<[f64; 32]> {
+    fn breakpoints(&self, sa: [f64; 2], sb: [f64; 2], occ: &[Line]) -> smallvec::SmallVec<[f64; 32]> {
         let mut fixed: smallvec::SmallVec<[V2; 16]> = smallvec::SmallVec::new();
         for o in occ {
             fixed.push(o.a);

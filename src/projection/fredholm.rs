@@ -8,11 +8,7 @@ use crate::quadrature::Rule;
 use crate::scene::Fredholm;
 use rayon::prelude::*;
 
-pub fn build(
-    f: &Fredholm,
-    disc: Discretization,
-    progress: &dyn Progress,
-) -> Result<System, Cancelled> {
+pub fn build(f: &Fredholm, disc: Discretization, progress: &dyn Progress) -> Result<System, Cancelled> {
     let k = disc.order + 1;
     let n = disc.cells;
     let [lo, hi] = f.domain;

@@ -89,9 +89,7 @@ fn normalize(text: &str, vars: &[&str]) -> Result<String, ExprError> {
                 out.push_str("PI");
             } else if vars.contains(&word) || FUNCTIONS.contains(&word) {
                 out.push_str(word);
-            } else if word.starts_with(|c: char| c == 'e' || c == 'E')
-                && out.ends_with(|c: char| c.is_ascii_digit() || c == '.')
-            {
+            } else if word.starts_with(|c: char| c == 'e' || c == 'E') && out.ends_with(|c: char| c.is_ascii_digit() || c == '.') {
                 // exponent of a number literal such as 1e-3
                 out.push_str(word);
             } else {

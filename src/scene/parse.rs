@@ -153,10 +153,7 @@ fn fredholm(w: &mut Walker, map: &Map<String, Value>) -> Option<Fredholm> {
         let p = "/scene/domain";
         let [a, b] = w.numbers::<2>(d, p)?;
         if a >= b {
-            w.error(
-                p,
-                format!("the domain [a, b] needs a < b; found [{a}, {b}]"),
-            );
+            w.error(p, format!("the domain [a, b] needs a < b; found [{a}, {b}]"));
             return None;
         }
         Some([a, b])
@@ -191,23 +188,11 @@ fn fredholm(w: &mut Walker, map: &Map<String, Value>) -> Option<Fredholm> {
 }
 
 fn material(w: &mut Walker, map: &Map<String, Value>, path: &str) -> Option<Material> {
-    let reflectance = w.required(map, path, "reflectance").and_then(|r| {
-        rgb(
-            w,
-            r,
-            &child(path, "reflectance"),
-            |x| (0.0..1.0).contains(&x),
-            "reflectance is in [0, 1)",
-        )
-    });
+    let reflectance = w
+        .required(map, path, "reflectance")
+        .and_then(|r| rgb(w, r, &child(path, "reflectance"), |x| (0.0..1.0).contains(&x), "reflectance is in [0, 1)"));
     let emission = match map.get("emission") {
-        Some(e) => rgb(
-            w,
-            e,
-            &child(path, "emission"),
-            |x| x >= 0.0,
-            "emission is ≥ 0",
-        ),
+        Some(e) => rgb(w, e, &child(path, "emission"), |x| x >= 0.0, "emission is ≥ 0"),
         None => Some([0.0; 3]),
     };
     Some(Material {
@@ -255,10 +240,7 @@ fn surface_name(w: &mut Walker, map: &Map<String, Value>, path: &str) -> Option<
 fn interval(w: &mut Walker, v: &Value, path: &str) -> Option<[f64; 2]> {
     let [a, b] = w.numbers::<2>(v, path)?;
     if !(0.0 <= a && a < b && b <= 1.0) {
-        w.error(
-            path,
-            format!("expected [s0, s1] with 0 ≤ s0 < s1 ≤ 1; found [{a}, {b}]"),
-        );
+        w.error(path, format!("expected [s0, s1] with 0 ≤ s0 < s1 ≤ 1; found [{a}, {b}]"));
         return None;
     }
     Some([a, b])
@@ -268,13 +250,7 @@ fn segment(w: &mut Walker, v: &Value, path: &str) -> Option<Segment> {
     let map = w.object(
         v,
         path,
-        &[
-            "name",
-            "segment",
-            "reflectance",
-            "emission",
-            "emission_region",
-        ],
+        &["name", "segment", "reflectance", "emission", "emission_region"],
     )?;
     let name = surface_name(w, map, path);
     let ends = w.required(map, path, "segment").and_then(|s| {
@@ -310,13 +286,7 @@ fn quad(w: &mut Walker, v: &Value, path: &str) -> Option<Quad> {
     let map = w.object(
         v,
         path,
-        &[
-            "name",
-            "corners",
-            "reflectance",
-            "emission",
-            "emission_region",
-        ],
+        &["name", "corners", "reflectance", "emission", "emission_region"],
     )?;
     let name = surface_name(w, map, path);
     let corners = w.required(map, path, "corners").and_then(|c| {
@@ -337,12 +307,8 @@ fn quad(w: &mut Walker, v: &Value, path: &str) -> Option<Quad> {
         Some(r) => {
             let p = child(path, "emission_region");
             w.object(r, &p, &["s", "t"]).and_then(|m| {
-                let s = w
-                    .required(m, &p, "s")
-                    .and_then(|s| interval(w, s, &child(&p, "s")));
-                let t = w
-                    .required(m, &p, "t")
-                    .and_then(|t| interval(w, t, &child(&p, "t")));
+                let s = w.required(m, &p, "s").and_then(|s| interval(w, s, &child(&p, "s")));
+                let t = w.required(m, &p, "t").and_then(|t| interval(w, t, &child(&p, "t")));
                 Some((s?, t?))
             })
         }
@@ -363,20 +329,18 @@ fn check_parallelogram(w: &mut Walker, c: &[[f64; 3]; 4], path: &str) -> bool {
     let e1 = sub(c[1], c[0]);
     let e3 = sub(c[3], c[0]);
     let size = norm(e1).max(norm(e3)).max(norm(sub(c[2], c[0])));
-    let gap = norm(sub(
-        [c[0][0] + c[2][0], c[0][1] + c[2][1], c[0][2] + c[2][2]],
-        [c[1][0] + c[3][0], c[1][1] + c[3][1], c[1][2] + c[3][2]],
-    ));
+    let gap = norm(sub([c[0][0] + c[2][0], c[0][1] + c[2][1], c[0][2] + c[2][2]], [
+        c[1][0] + c[3][0],
+        c[1][1] + c[3][1],
+        c[1][2] + c[3][2],
+    ]));
     let cross = [
         e1[1] * e3[2] - e1[2] * e3[1],
         e1[2] * e3[0] - e1[0] * e3[2],
         e1[0] * e3[1] - e1[1] * e3[0],
     ];
     if size == 0.0 || norm(cross) <= 1e-12 * size * size {
-        w.error(
-            path,
-            "the surface has zero area (its corners are collinear or equal)",
-        );
+        w.error(path, "the surface has zero area (its corners are collinear or equal)");
         return false;
     }
     if gap > 1e-6 * size {
@@ -395,16 +359,8 @@ fn solver(w: &mut Walker, v: &Value, limits: &Limits, kind: Option<&str>) -> Opt
         v,
         path,
         &[
-            "method",
-            "basis",
-            "order",
-            "resolution",
-            "keep",
-            "iteration",
-            "tolerance",
-            "max_iterations",
-            "quadrature",
-            "epsilon",
+            "method", "basis", "order", "resolution", "keep", "iteration", "tolerance",
+            "max_iterations", "quadrature", "epsilon",
         ],
     )?;
     let d = Solver::default();
@@ -447,13 +403,7 @@ fn solver(w: &mut Walker, v: &Value, limits: &Limits, kind: Option<&str>) -> Opt
         None => default,
     };
     let order = int("order", 0, limits.max_order as u64, d.order, &mut ok);
-    let resolution = int(
-        "resolution",
-        1,
-        limits.max_resolution as u64,
-        d.resolution,
-        &mut ok,
-    );
+    let resolution = int("resolution", 1, limits.max_resolution as u64, d.resolution, &mut ok);
     let max_iterations = int("max_iterations", 1, 1_000_000, d.max_iterations, &mut ok);
     let quadrature = int("quadrature", 1, 64, order + 2, &mut ok);
     let needs_pow2 = basis == BasisKind::Wavelet || method == Method::Hierarchical;
@@ -539,11 +489,7 @@ fn keep(w: &mut Walker, v: &Value, path: &str) -> Option<Keep> {
 
 fn output(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Output> {
     let path = "/output";
-    let map = w.object(
-        v,
-        path,
-        &["image", "camera", "grid", "reference", "coefficients"],
-    )?;
+    let map = w.object(v, path, &["image", "camera", "grid", "reference", "coefficients"])?;
     let d = Output::default();
     let image = match map.get("image") {
         Some(v) => image(w, v, limits),
@@ -587,12 +533,7 @@ fn image(w: &mut Walker, v: &Value, limits: &Limits) -> Option<ImageSpec> {
         None => Some(Exposure::Auto),
         Some(Value::String(s)) if s == "auto" => Some(Exposure::Auto),
         Some(v) => w
-            .number_in(
-                v,
-                "/output/image/exposure",
-                |x| x > 0.0,
-                "\"auto\" or a number > 0",
-            )
+            .number_in(v, "/output/image/exposure", |x| x > 0.0, "\"auto\" or a number > 0")
             .map(Exposure::White),
     };
     let (width, height) = (width?, height?);
@@ -616,9 +557,7 @@ fn image(w: &mut Walker, v: &Value, limits: &Limits) -> Option<ImageSpec> {
 fn camera(w: &mut Walker, v: &Value) -> Option<Camera> {
     let path = "/output/camera";
     let map = w.object(v, path, &["eye", "look_at", "up", "fov_deg"])?;
-    let eye = w
-        .required(map, path, "eye")
-        .and_then(|v| w.numbers::<3>(v, "/output/camera/eye"));
+    let eye = w.required(map, path, "eye").and_then(|v| w.numbers::<3>(v, "/output/camera/eye"));
     let look_at = w
         .required(map, path, "look_at")
         .and_then(|v| w.numbers::<3>(v, "/output/camera/look_at"));
@@ -627,26 +566,14 @@ fn camera(w: &mut Walker, v: &Value) -> Option<Camera> {
         None => Some([0.0, 1.0, 0.0]),
     };
     let fov_deg = match map.get("fov_deg") {
-        Some(v) => w.number_in(
-            v,
-            "/output/camera/fov_deg",
-            |f| f > 0.0 && f < 180.0,
-            "0 < fov_deg < 180",
-        ),
+        Some(v) => w.number_in(v, "/output/camera/fov_deg", |f| f > 0.0 && f < 180.0, "0 < fov_deg < 180"),
         None => Some(40.0),
     };
     let (eye, look_at, up, fov_deg) = (eye?, look_at?, up?, fov_deg?);
-    let dir = [
-        look_at[0] - eye[0],
-        look_at[1] - eye[1],
-        look_at[2] - eye[2],
-    ];
+    let dir = [look_at[0] - eye[0], look_at[1] - eye[1], look_at[2] - eye[2]];
     let dn = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
     if dn == 0.0 {
-        w.error(
-            "/output/camera/look_at",
-            "look_at equals eye: the camera has no direction",
-        );
+        w.error("/output/camera/look_at", "look_at equals eye: the camera has no direction");
         return None;
     }
     let cross = [
@@ -657,10 +584,7 @@ fn camera(w: &mut Walker, v: &Value) -> Option<Camera> {
     let un = (up[0] * up[0] + up[1] * up[1] + up[2] * up[2]).sqrt();
     let cn = (cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]).sqrt();
     if un == 0.0 || cn <= 1e-9 * dn * un {
-        w.error(
-            "/output/camera/up",
-            "up is zero or parallel to the viewing direction",
-        );
+        w.error("/output/camera/up", "up is zero or parallel to the viewing direction");
         return None;
     }
     Some(Camera {
@@ -677,10 +601,7 @@ fn reference(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Reference> {
         return Some(Reference::Exact);
     }
     if v.is_string() {
-        w.error(
-            path,
-            "expected \"exact\" or {\"order\": m, \"resolution\": n}",
-        );
+        w.error(path, "expected \"exact\" or {\"order\": m, \"resolution\": n}");
         return None;
     }
     let map = w.object(v, path, &["order", "resolution"])?;
@@ -688,12 +609,7 @@ fn reference(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Reference> {
         .required(map, path, "order")
         .and_then(|o| w.integer(o, "/output/reference/order", 0, limits.max_order as u64));
     let resolution = w.required(map, path, "resolution").and_then(|r| {
-        w.integer(
-            r,
-            "/output/reference/resolution",
-            1,
-            limits.max_resolution as u64,
-        )
+        w.integer(r, "/output/reference/resolution", 1, limits.max_resolution as u64)
     });
     Some(Reference::Finer {
         order: order?,
@@ -797,17 +713,9 @@ mod tests {
     #[test]
     fn applies_every_default() {
         let job = parse_value(&flat(json!({})), &Limits::default()).unwrap();
-        assert_eq!(
-            job.solver,
-            Solver {
-                quadrature: 3,
-                ..Solver::default()
-            }
-        );
+        assert_eq!(job.solver, Solver { quadrature: 3, ..Solver::default() });
         assert_eq!(job.output, Output::default());
-        let SceneKind::Flatland(s) = &job.scene.kind else {
-            panic!()
-        };
+        let SceneKind::Flatland(s) = &job.scene.kind else { panic!() };
         assert_eq!(s[1].material.emission, [0.0; 3]);
         assert_eq!(s[1].material.reflectance, [0.1, 0.2, 0.3]);
         assert_eq!(s[0].emission_region, [0.0, 1.0]);
@@ -841,18 +749,9 @@ mod tests {
 
     #[test]
     fn cross_field_errors() {
-        assert_eq!(
-            errors(flat(json!({"solver": {"resolution": 12}}))),
-            ["/solver/resolution"]
-        );
-        assert!(errors(flat(
-            json!({"solver": {"resolution": 12, "basis": "scaling"}})
-        ))
-        .is_empty());
-        assert_eq!(
-            errors(flat(json!({"output": {"reference": "exact"}}))),
-            ["/output/reference"]
-        );
+        assert_eq!(errors(flat(json!({"solver": {"resolution": 12}}))), ["/solver/resolution"]);
+        assert!(errors(flat(json!({"solver": {"resolution": 12, "basis": "scaling"}}))).is_empty());
+        assert_eq!(errors(flat(json!({"output": {"reference": "exact"}}))), ["/output/reference"]);
         assert_eq!(
             errors(flat(json!({"solver": {"resolution": 1024, "order": 8}}))),
             ["/solver/resolution"]
@@ -898,13 +797,7 @@ mod tests {
         got.sort();
         assert_eq!(
             got,
-            [
-                "/scene/domain",
-                "/scene/kernel",
-                "/scene/source",
-                "/scene/surfaces",
-                "/solver/method"
-            ]
+            ["/scene/domain", "/scene/kernel", "/scene/source", "/scene/surfaces", "/solver/method"]
         );
     }
 
@@ -914,18 +807,10 @@ mod tests {
         assert_eq!(errors(json!({})), ["/scene"]);
         assert_eq!(errors(json!({"scene": {"kind": "4d"}})), ["/scene/kind"]);
         assert_eq!(
-            errors(flat(
-                json!({"solver": {"keep": {"top": 3, "fraction": 0.5}}})
-            )),
+            errors(flat(json!({"solver": {"keep": {"top": 3, "fraction": 0.5}}}))),
             ["/solver/keep"]
         );
-        assert_eq!(
-            errors(flat(json!({"solver": {"tolerance": 0}}))),
-            ["/solver/tolerance"]
-        );
-        assert_eq!(
-            errors(flat(json!({"solver": {"order": 1.5}}))),
-            ["/solver/order"]
-        );
+        assert_eq!(errors(flat(json!({"solver": {"tolerance": 0}}))), ["/solver/tolerance"]);
+        assert_eq!(errors(flat(json!({"solver": {"order": 1.5}}))), ["/solver/order"]);
     }
 }

@@ -43,10 +43,7 @@ impl Walker {
             if !allowed.contains(&key.as_str()) {
                 self.error(
                     child(path, key),
-                    format!(
-                        "unknown field `{key}`; expected one of: {}",
-                        allowed.join(", ")
-                    ),
+                    format!("unknown field `{key}`; expected one of: {}", allowed.join(", ")),
                 );
             }
         }
@@ -107,17 +104,11 @@ impl Walker {
                 .filter(|x| x.fract() == 0.0 && *x >= 0.0 && *x < 9.0e15)
                 .map(|x| x as u64)
         }) else {
-            self.error(
-                path,
-                format!("expected a whole number, found {}", describe(v)),
-            );
+            self.error(path, format!("expected a whole number, found {}", describe(v)));
             return None;
         };
         if n < lo || n > hi {
-            self.error(
-                path,
-                format!("{n} is out of range: must be from {lo} to {hi}"),
-            );
+            self.error(path, format!("{n} is out of range: must be from {lo} to {hi}"));
             return None;
         }
         usize::try_from(n).ok()
@@ -147,10 +138,7 @@ impl Walker {
 
     pub fn array_len<'v>(&mut self, v: &'v Value, path: &str, n: usize) -> Option<&'v [Value]> {
         let Some(arr) = v.as_array() else {
-            self.error(
-                path,
-                format!("expected an array of {n}, found {}", kind_of(v)),
-            );
+            self.error(path, format!("expected an array of {n}, found {}", kind_of(v)));
             return None;
         };
         if arr.len() != n {
