@@ -296,9 +296,19 @@ pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
         (yr.end - yr.start).max(1) as u32,
     );
     let (llo, lhi) = (lo.log10(), hi.log10());
-    // One colour per picture cell, then nearest-neighbour scaling onto the plotting area.
-    let colors: Vec<[u8; 3]> = p
-        .values
+    // At most one cell per pixel: blocks of f × f cells keep their largest magnitude, so that
+    // no entry is lost to the scaling.
+    let f = p.side.div_ceil((pw.min(ph) as usize).max(1)).max(1);
+    let side = p.side.div_ceil(f);
+    let mut pooled = vec![0.0f64; side * side];
+    for (r, row) in p.values.chunks(p.side).enumerate() {
+        for (c, &v) in row.iter().enumerate() {
+            let cell = &mut pooled[(r / f) * side + c / f];
+            *cell = cell.max(v);
+        }
+    }
+    // One colour per cell, then nearest-neighbour scaling onto the plotting area.
+    let colors: Vec<[u8; 3]> = pooled
         .iter()
         .map(|&v| {
             if v <= 0.0 || v < p.cut {
@@ -310,15 +320,15 @@ pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
         })
         .collect();
     let cols: Vec<usize> = (0..pw)
-        .map(|px| (px as usize * p.side / pw as usize).min(p.side - 1))
+        .map(|px| (px as usize * side / pw as usize).min(side - 1))
         .collect();
     for py in 0..ph.min(h.saturating_sub(y0)) {
-        let row = (py as usize * p.side / ph as usize).min(p.side - 1);
+        let row = (py as usize * side / ph as usize).min(side - 1);
         for (px, &col) in cols.iter().enumerate().take(w.saturating_sub(x0) as usize) {
             img.put_pixel(
                 x0 + px as u32,
                 y0 + py,
-                image::Rgb(colors[row * p.side + col]),
+                image::Rgb(colors[row * side + col]),
             );
         }
     }
