@@ -19,8 +19,8 @@ fn doc(order: usize, resolution: usize) -> Value {
     d
 }
 
-/// The ~50 ms job: order 2, 128 cells per segment (768 unknowns).
-const MEDIUM: (usize, usize) = (2, 128);
+/// The ~50 ms job: order 3, 64 cells per segment (512 unknowns).
+const MEDIUM: (usize, usize) = (3, 64);
 const SMALL: (usize, usize) = (1, 8);
 
 static COUNTER: AtomicUsize = AtomicUsize::new(0);
@@ -71,6 +71,19 @@ fn bench(c: &mut Criterion) {
     group.bench_function("small flatland job, POST /api/v1/render (png)", |b| {
         b.iter(|| rt.block_on(render(fresh(&small), "image/png")))
     });
+    group.bench_function("small flatland job, POST /api/v1/render (json)", |b| {
+        b.iter(|| rt.block_on(render(fresh(&small), "application/json")))
+    });
+    let small_job = wavrad::scene::parse_value(&small, &wavrad::scene::Limits::default()).unwrap();
+    group.bench_function("small flatland job, job::run + render_all directly", |b| {
+        b.iter(|| {
+            let outcome = wavrad::job::run(&small_job, &wavrad::progress::Silent).unwrap();
+            wavrad::render::render_all(&small_job, &outcome)
+        })
+    });
+    group.bench_function("small flatland job, job::run directly", |b| {
+        b.iter(|| wavrad::job::run(&small_job, &wavrad::progress::Silent).unwrap())
+    });
     group.finish();
 
     let medium = doc(MEDIUM.0, MEDIUM.1);
@@ -81,6 +94,12 @@ fn bench(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(12));
     group.bench_function("job::run directly", |b| {
         b.iter(|| wavrad::job::run(&job, &wavrad::progress::Silent).unwrap())
+    });
+    group.bench_function("job::run + render::render_all directly", |b| {
+        b.iter(|| {
+            let outcome = wavrad::job::run(&job, &wavrad::progress::Silent).unwrap();
+            wavrad::render::render_all(&job, &outcome)
+        })
     });
     group.bench_function("POST /api/v1/render (json)", |b| {
         b.iter(|| rt.block_on(render(fresh(&medium), "application/json")))

@@ -30,13 +30,18 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_env("WAVRAD_LOG")
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,tower_http=warn")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    let filter = tracing_subscriber::EnvFilter::try_from_env("WAVRAD_LOG")
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,tower_http=warn"));
+    let logs = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
+    // One JSON object per line with WAVRAD_LOG_FORMAT=json (for log collectors).
+    if std::env::var("WAVRAD_LOG_FORMAT").is_ok_and(|f| f == "json") {
+        logs.json().init();
+    } else {
+        logs.with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+            .init();
+    }
     match Cli::parse().command {
         Command::Serve(config) => serve(config),
         Command::Render { doc, out } => render(&doc, &out),
@@ -123,6 +128,11 @@ fn render(doc: &Path, out: &Path) -> ExitCode {
         std::fs::create_dir_all(out.join("surfaces")).map_err(io)?;
         std::fs::write(out.join("result.json"), json).map_err(io)?;
         for (name, bytes) in images.files() {
+            // A surface name is one file name: separators become '_'.
+            let name = match name.strip_prefix("surfaces/") {
+                Some(file) => format!("surfaces/{}", file.replace(['/', '\\'], "_")),
+                None => name,
+            };
             std::fs::write(out.join(&name), bytes).map_err(io)?;
         }
         println!("wrote {}", out.display());

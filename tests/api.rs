@@ -591,3 +591,21 @@ async fn operations_routes() {
     assert_eq!(st, StatusCode::OK);
     assert_eq!(json(&b), scene("flatland-parallel"));
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn surface_names_are_percent_encoded_in_links() {
+    let (_dir, state, router) = setup(|_| {});
+    let mut doc = named("spaces");
+    doc["scene"]["surfaces"][1]["name"] = json!("top wall");
+    let (_, _, s) = submit(&router, &doc).await;
+    let id = s["id"].as_str().unwrap().to_string();
+    let link = s["links"]["surfaces"]["top wall"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert_eq!(link, format!("/api/v1/jobs/{id}/surfaces/top%20wall.png"));
+    wait_until(&state, &id, |s| s.is_final()).await;
+    let (st, h, _) = call(&router, get(&link)).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(h[header::CONTENT_TYPE], "image/png");
+}

@@ -255,6 +255,12 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         .unwrap();
     assert_eq!(iterations, result["metrics"]["iterations"].to_string());
 
+    if let Ok(dir) = std::env::var("WAVRAD_SCREENSHOT_DIR") {
+        client.set_window_size(1200, 1600).await.unwrap();
+        let png = client.screenshot().await.unwrap();
+        std::fs::write(PathBuf::from(dir).join("desktop.png"), png).unwrap();
+    }
+
     // Phone width: nothing wider than the screen.
     client.set_window_size(390, 844).await.unwrap();
     let fits = client

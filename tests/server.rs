@@ -190,6 +190,7 @@ async fn all_images(doc: &Value) -> Vec<(String, Vec<u8>)> {
     let entry = match state.queue.submit(
         doc.clone(),
         wavrad::scene::parse_value(doc, &wavrad::scene::Limits::default()).unwrap(),
+        true,
     ) {
         Ok(wavrad::server::queue::Submitted::New(e)) => e,
         _ => panic!("a new job"),

@@ -296,19 +296,40 @@ pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
         (yr.end - yr.start).max(1) as u32,
     );
     let (llo, lhi) = (lo.log10(), hi.log10());
-    for py in 0..ph {
-        let row = (py as usize * p.side / ph as usize).min(p.side - 1);
-        for px in 0..pw {
-            let col = (px as usize * p.side / pw as usize).min(p.side - 1);
-            let v = p.values[row * p.side + col];
-            let color = if v <= 0.0 || v < p.cut {
-                RGBColor(255, 255, 255)
+    // At most one cell per pixel: blocks of f × f cells keep their largest magnitude, so that
+    // no entry is lost to the scaling.
+    let f = p.side.div_ceil((pw.min(ph) as usize).max(1)).max(1);
+    let side = p.side.div_ceil(f);
+    let mut pooled = vec![0.0f64; side * side];
+    for (r, row) in p.values.chunks(p.side).enumerate() {
+        for (c, &v) in row.iter().enumerate() {
+            let cell = &mut pooled[(r / f) * side + c / f];
+            *cell = cell.max(v);
+        }
+    }
+    // One colour per cell, then nearest-neighbour scaling onto the plotting area.
+    let colors: Vec<[u8; 3]> = pooled
+        .iter()
+        .map(|&v| {
+            if v <= 0.0 || v < p.cut {
+                [255, 255, 255]
             } else {
-                viridis((v.log10() - llo) / (lhi - llo))
-            };
-            if x0 + px < w && y0 + py < h {
-                img.put_pixel(x0 + px, y0 + py, image::Rgb([color.0, color.1, color.2]));
+                let c = viridis((v.log10() - llo) / (lhi - llo));
+                [c.0, c.1, c.2]
             }
+        })
+        .collect();
+    let cols: Vec<usize> = (0..pw)
+        .map(|px| (px as usize * side / pw as usize).min(side - 1))
+        .collect();
+    for py in 0..ph.min(h.saturating_sub(y0)) {
+        let row = (py as usize * side / ph as usize).min(side - 1);
+        for (px, &col) in cols.iter().enumerate().take(w.saturating_sub(x0) as usize) {
+            img.put_pixel(
+                x0 + px as u32,
+                y0 + py,
+                image::Rgb(colors[row * side + col]),
+            );
         }
     }
     img

@@ -141,9 +141,15 @@ pub async fn run_with(
         signal.cancel();
     });
     let mut server = tokio::spawn(
-        axum::serve(listener, app(state))
-            .with_graceful_shutdown(token.clone().cancelled_owned())
-            .into_future(),
+        // No Nagle delay: a PNG answer goes out in one flight.
+        axum::serve(
+            axum::serve::ListenerExt::tap_io(listener, |tcp| {
+                let _ = tcp.set_nodelay(true);
+            }),
+            app(state),
+        )
+        .with_graceful_shutdown(token.clone().cancelled_owned())
+        .into_future(),
     );
     tokio::select! {
         _ = token.cancelled() => {}

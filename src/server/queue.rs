@@ -98,10 +98,27 @@ impl Links {
             coefficients: format!("{base}/coefficients.png"),
             surfaces: surfaces
                 .iter()
-                .map(|s| (s.clone(), format!("{base}/surfaces/{s}.png")))
+                .map(|s| {
+                    (
+                        s.clone(),
+                        format!("{base}/surfaces/{}.png", encode_segment(s)),
+                    )
+                })
                 .collect(),
         }
     }
+}
+
+/// Percent-encodes a surface name for a URL path segment (unreserved characters stay).
+fn encode_segment(name: &str) -> String {
+    name.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => {
+                (b as char).to_string()
+            }
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
 }
 
 /// The failure of a job, as a problem document.
@@ -382,8 +399,10 @@ impl Queue {
     }
 
     /// Queues a validated document, or answers the job that already has this document.
-    /// Blocks on the store: call from a blocking context.
-    pub fn submit(&self, document: Value, job: Job) -> Result<Submitted, Problem> {
+    /// `durable`: the job is on disk before this returns (a 202 promises that); otherwise it
+    /// is written lazily and becomes durable with the next durable write (at the latest its
+    /// own result). Blocks on the store: call from a blocking context.
+    pub fn submit(&self, document: Value, job: Job, durable: bool) -> Result<Submitted, Problem> {
         let inner = &self.inner;
         let id = job_id(&document);
         let mut entries = inner.entries.lock().expect("entries lock");
@@ -417,7 +436,11 @@ impl Queue {
             document: document.clone(),
             status: status.clone(),
         };
-        inner.store.put_job(&id, &record).map_err(internal)?;
+        if durable {
+            inner.store.put_job(&id, &record).map_err(internal)?;
+        } else {
+            inner.store.put_job_lazily(&id, &record).map_err(internal)?;
+        }
         let entry = Arc::new(Entry {
             id: id.clone(),
             document,
@@ -565,7 +588,8 @@ impl Queue {
                 fraction: 0.0,
             };
         });
-        self.persist(&entry, &[]);
+        // Not written to the store: a job that was running at a crash is queued again, exactly
+        // like one that was waiting, so `queued` on disk says all there is to say.
         let watch = Watch {
             entry: &entry,
             deadline: start + inner.config.job_timeout,
@@ -656,10 +680,6 @@ impl Queue {
         }
         inner.running.fetch_sub(1, Ordering::SeqCst);
         inner.idle.notify_waiters();
-    }
-
-    fn persist(&self, entry: &Entry, files: &[(String, &[u8])]) {
-        self.write(entry, entry.status(), files)
     }
 
     fn write(&self, entry: &Entry, status: JobStatus, files: &[(String, &[u8])]) {

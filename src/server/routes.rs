@@ -114,9 +114,14 @@ fn entry(state: &AppState, id: &str) -> Result<Arc<Entry>, Problem> {
         .ok_or_else(|| Problem::not_found(&format!("job {id}")))
 }
 
-async fn submit(state: &AppState, document: Value, job: Job) -> Result<Submitted, Problem> {
+async fn submit(
+    state: &AppState,
+    document: Value,
+    job: Job,
+    durable: bool,
+) -> Result<Submitted, Problem> {
     let queue = state.queue.clone();
-    blocking(move || queue.submit(document, job)).await
+    blocking(move || queue.submit(document, job, durable)).await
 }
 
 /// Queue a job document.
@@ -137,7 +142,7 @@ pub async fn create_job(
     body: Body,
 ) -> Result<Response, Problem> {
     let (document, job) = read_document(&state, &headers, body).await?;
-    let (status, entry) = match submit(&state, document, job).await? {
+    let (status, entry) = match submit(&state, document, job, true).await? {
         Submitted::New(e) => (StatusCode::ACCEPTED, e),
         Submitted::Existing(e) if e.status().state.is_final() => (StatusCode::OK, e),
         Submitted::Existing(e) => (StatusCode::ACCEPTED, e),
@@ -376,7 +381,8 @@ pub async fn render_now(
     request: Request,
 ) -> Result<Response, Problem> {
     let (document, job) = read_document(&state, &headers, request.into_body()).await?;
-    let entry = match submit(&state, document, job).await {
+    // The client waits for the answer: no need to wait for the disk before solving.
+    let entry = match submit(&state, document, job, false).await {
         Ok(Submitted::New(e) | Submitted::Existing(e)) => e,
         Err(p) if p.status == 429 => {
             let mut p = p;

@@ -48,6 +48,20 @@ impl Store {
         self.put_finished(id, record, &[])
     }
 
+    /// Writes a job's record without waiting for the disk: it becomes durable with the next
+    /// durable commit (for jobs whose client waits for the answer anyway).
+    pub fn put_job_lazily<T: Serialize>(&self, id: &str, record: &T) -> Result<(), StoreError> {
+        let bytes = serde_json::to_vec(record)?;
+        let mut txn = self.db.begin_write().map_err(dberr)?;
+        txn.set_durability(redb::Durability::None);
+        txn.open_table(JOBS)
+            .map_err(dberr)?
+            .insert(id, bytes.as_slice())
+            .map_err(dberr)?;
+        txn.commit().map_err(dberr)?;
+        Ok(())
+    }
+
     /// Writes a job's record and its files in one transaction.
     pub fn put_finished<T: Serialize>(
         &self,
