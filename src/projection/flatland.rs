@@ -294,19 +294,12 @@ impl FastTables {
                     .collect()
             })
             .collect();
-        // points_for_separation falls as the ratio grows: bisect for each rule's threshold.
+        // points_for_separation(r) ≤ q ⇔ ρ ≥ e^(15/q), ρ = a + √(a² − 1), a = 1 + 2r
         let ratios = (q_min..=FAST_MAX_Q)
             .map(|q| {
-                let (mut lo, mut hi) = (1.0f64, 1e9f64);
-                for _ in 0..100 {
-                    let mid = (lo * hi).sqrt();
-                    if points_for_separation(mid, 1.0) <= q {
-                        hi = mid;
-                    } else {
-                        lo = mid;
-                    }
-                }
-                hi
+                let rho = (15.0 / q as f64).exp();
+                let a = 0.5 * (rho + 1.0 / rho);
+                (0.5 * (a - 1.0)).max(1.0) * (1.0 + 1e-12)
             })
             .collect();
         FastTables {
