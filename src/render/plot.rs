@@ -110,48 +110,39 @@ pub fn radiosity(job: &Job, names: &[String], fields: &[Field], w: u32, h: u32) 
         .unwrap_or_else(|| "Radiosity".to_string());
     canvas(w, h, |root| {
         root.fill(&WHITE)?;
-        let root = root.titled(&title, (SANS, 18))?;
-        if fields.len() <= 6 {
-            let panels = root.split_evenly((fields.len(), 1));
-            for ((area, f), name) in panels.iter().zip(fields).zip(names) {
-                let series = if differ {
-                    CHANNELS
-                        .iter()
-                        .enumerate()
-                        .map(|(c, (label, color))| Series {
-                            label: format!("{name} {label}"),
-                            color: *color,
-                            points: samples(f, Some(c), x),
-                        })
-                        .collect()
-                } else {
-                    vec![Series {
-                        label: name.clone(),
-                        color: CHANNELS[2].1,
-                        points: samples(f, Some(0), x),
-                    }]
-                };
-                line_chart(area, name, domain, xdesc, ydesc, series)?;
-            }
+        // long names get a smaller title rather than being cut at the edges
+        // one panel per surface: a column of up to six, then a grid
+        let n = fields.len();
+        let cols = n.div_ceil(6);
+        let rows = n.div_ceil(cols);
+        let small = (h as usize) / rows < 220;
+        let title = if small && differ {
+            format!("{title} (R, G, B: red, green, blue)")
         } else {
-            let series = fields
-                .iter()
-                .zip(names)
-                .enumerate()
-                .map(|(i, (f, name))| {
-                    let c = Palette99::pick(i).to_rgba();
-                    Series {
-                        label: if differ {
-                            format!("{name} (mean of R,G,B)")
-                        } else {
-                            name.clone()
-                        },
-                        color: RGBColor(c.0, c.1, c.2),
-                        points: samples(f, if differ { None } else { Some(0) }, x),
-                    }
-                })
-                .collect();
-            line_chart(&root, "all surfaces", domain, xdesc, ydesc, series)?;
+            title.clone()
+        };
+        let size = (w as f64 / (0.55 * title.chars().count().max(1) as f64)).clamp(11.0, 18.0);
+        let root = root.titled(&title, (SANS, size))?;
+        let panels = root.split_evenly((rows, cols));
+        for ((area, f), name) in panels.iter().zip(fields).zip(names) {
+            let series = if differ {
+                CHANNELS
+                    .iter()
+                    .enumerate()
+                    .map(|(c, (label, color))| Series {
+                        label: format!("{name} {label}"),
+                        color: *color,
+                        points: samples(f, Some(c), x),
+                    })
+                    .collect()
+            } else {
+                vec![Series {
+                    label: name.clone(),
+                    color: CHANNELS[2].1,
+                    points: samples(f, Some(0), x),
+                }]
+            };
+            line_chart(area, name, domain, xdesc, ydesc, series)?;
         }
         Ok(())
     })
@@ -201,13 +192,16 @@ fn line_chart(
                 PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
             });
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .label_font((SANS, 11))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()?;
+    // small panels have no room for a legend: the title names the colours instead
+    if !small {
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font((SANS, 11))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()?;
+    }
     Ok(())
 }
 
