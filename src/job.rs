@@ -182,97 +182,67 @@ pub fn solve_job(
     keep: Keep,
     progress: &dyn Progress,
 ) -> Result<Solution, JobError> {
-    match (&job.scene.kind, job.solver.method) {
-        (SceneKind::Flatland(segments), Method::Hierarchical) => {
-            let settings = solve::Settings {
-                iteration: job.solver.iteration,
-                tolerance: job.solver.tolerance,
-                max_iterations: job.solver.max_iterations,
-            };
-            let quadrature = job.solver.quadrature.max(order + 2);
-            let mut sol = crate::hierarchy::flatland::solve(
-                segments,
-                order,
-                resolution,
-                quadrature,
-                job.solver.epsilon,
-                settings,
-                progress,
-            )?;
-            let t = Instant::now();
-            let disc = Discretization {
-                order,
-                cells: resolution,
-                quadrature,
-            };
-            let (err, left_out) = kernel_error_1d(job, disc, &sol, progress)?;
-            sol.kernel_error = err;
-            sol.left_out = left_out;
-            sol.timings.insert("metrics".into(), ms(t));
-            Ok(sol)
+    // a reference solve at a higher order needs at least its own default rule
+    let quadrature = if order == job.solver.order {
+        job.solver.quadrature
+    } else {
+        job.solver.quadrature.max(order + 2)
+    };
+    let disc = Discretization {
+        order,
+        cells: resolution,
+        quadrature,
+    };
+    let settings = solve::Settings {
+        iteration: job.solver.iteration,
+        tolerance: job.solver.tolerance,
+        max_iterations: job.solver.max_iterations,
+    };
+    let mut sol = match (&job.scene.kind, job.solver.method) {
+        (SceneKind::Fredholm(_), Method::Hierarchical) => {
+            return Err(JobError::Unsupported(
+                "the hierarchical method solves flatland and 3d scenes, not fredholm equations"
+                    .into(),
+            ))
         }
-        (SceneKind::Fredholm(_), Method::Hierarchical) => Err(JobError::Unsupported(
-            "the hierarchical method solves flatland and 3d scenes, not fredholm equations".into(),
-        )),
-        (SceneKind::ThreeD(quads), Method::Hierarchical) => {
-            let mut sol = crate::hierarchy::three_d::solve(job, order, resolution, progress)?;
-            let t = Instant::now();
-            let disc = Discretization {
-                order,
-                cells: resolution,
-                quadrature: job.solver.quadrature,
-            };
-            let (err, left_out) = kernel_error_3d(quads, disc, &sol, progress)?;
-            sol.kernel_error = err;
-            sol.left_out = left_out;
-            sol.timings.insert("metrics".into(), ms(t));
-            Ok(sol)
+        (SceneKind::Flatland(segments), Method::Hierarchical) => crate::hierarchy::flatland::solve(
+            segments,
+            order,
+            resolution,
+            quadrature,
+            job.solver.epsilon,
+            settings,
+            progress,
+        )?,
+        (SceneKind::ThreeD(_), Method::Hierarchical) => {
+            crate::hierarchy::three_d::solve(job, order, resolution, progress)?
         }
         (SceneKind::ThreeD(quads), Method::Projection) => {
-            let disc = Discretization {
-                order,
-                cells: resolution,
-                quadrature: if order == job.solver.order {
-                    job.solver.quadrature
-                } else {
-                    job.solver.quadrature.max(order + 2)
-                },
-            };
             let t = Instant::now();
             let system = projection::three_d::build(quads, disc, progress)?;
             let build_ms = ms(t);
             let mut sol = projection_solve(system, job, keep, progress)?;
             sol.timings.insert("projection".into(), build_ms);
-            let t = Instant::now();
-            let (err, left_out) = kernel_error_3d(quads, disc, &sol, progress)?;
-            sol.kernel_error = err;
-            sol.left_out = left_out;
-            sol.timings.insert("metrics".into(), ms(t));
-            Ok(sol)
+            sol
         }
         _ => {
-            let disc = Discretization {
-                order,
-                cells: resolution,
-                quadrature: if order == job.solver.order {
-                    job.solver.quadrature
-                } else {
-                    job.solver.quadrature.max(order + 2)
-                },
-            };
             let t = Instant::now();
             let system = projection::build(job, disc, progress)?;
             let build_ms = ms(t);
             let mut sol = projection_solve(system, job, keep, progress)?;
             sol.timings.insert("projection".into(), build_ms);
-            let t = Instant::now();
-            let (err, left_out) = kernel_error_1d(job, disc, &sol, progress)?;
-            sol.kernel_error = err;
-            sol.left_out = left_out;
-            sol.timings.insert("metrics".into(), ms(t));
-            Ok(sol)
+            sol
         }
-    }
+    };
+    let t = Instant::now();
+    let (err, left_out) = match &job.scene.kind {
+        SceneKind::ThreeD(quads) => kernel_error_3d(quads, disc, &sol, progress)?,
+        _ => kernel_error_1d(job, disc, &sol, progress)?,
+    };
+    sol.kernel_error = err;
+    sol.left_out = left_out;
+    sol.timings.insert("metrics".into(), ms(t));
+    Ok(sol)
 }
 
 /// Transform, threshold and solve a system; B, E and H as fields.
@@ -420,7 +390,7 @@ fn kernel_error_1d(
                 vec![],
             ))
         }
-        SceneKind::ThreeD(_) => Ok((sol.kernel_error, vec![])),
+        SceneKind::ThreeD(_) => unreachable!("3d scenes take kernel_error_3d"),
     }
 }
 
