@@ -150,11 +150,19 @@ pub struct Kept {
 /// matrix, memory independent of its size, and a cancellation check every few million entries.
 #[derive(Debug, Clone)]
 pub struct Ranking {
-    /// Counts of non-zero magnitudes per bucket (the top bits of `|v|.to_bits()`).
+    /// Counts of non-zero magnitudes per bucket (the top bits of `|v|.to_bits()`); empty for a
+    /// small matrix, whose magnitudes are simply sorted.
     buckets: Vec<u64>,
+    /// Entries in buckets above each bucket (so the ranks of bucket b start at above[b]).
+    above: Vec<u64>,
+    /// Small matrices: every magnitude, decreasing.
+    sorted: Vec<f64>,
     zeros: u64,
     len: usize,
 }
+
+/// Up to this many entries the magnitudes are sorted outright.
+const SORT_BELOW: usize = 1 << 16;
 
 /// Buckets of 1/256 of an octave: the sign bit is clear, so 19 bits of exponent and mantissa.
 const BUCKET_SHIFT: u32 = 44;
@@ -168,6 +176,17 @@ fn bucket_of(v: f64) -> usize {
 
 impl Ranking {
     pub fn new(values: &[f64], progress: &dyn Progress) -> Result<Ranking, Cancelled> {
+        if values.len() <= SORT_BELOW {
+            let mut sorted: Vec<f64> = values.iter().map(|v| v.abs()).collect();
+            sorted.sort_unstable_by(|a, b| b.total_cmp(a));
+            return Ok(Ranking {
+                zeros: sorted.iter().filter(|v| **v == 0.0).count() as u64,
+                len: values.len(),
+                sorted,
+                buckets: Vec::new(),
+                above: Vec::new(),
+            });
+        }
         let (buckets, zeros) = values
             .par_chunks(CHUNK)
             .map(|chunk| {
@@ -190,8 +209,16 @@ impl Ranking {
                     Ok((a, za + zb))
                 },
             )?;
+        let mut above = vec![0u64; BUCKETS];
+        let mut acc = 0;
+        for b in (0..BUCKETS).rev() {
+            above[b] = acc;
+            acc += buckets[b];
+        }
         Ok(Ranking {
             buckets,
+            above,
+            sorted: Vec::new(),
             zeros,
             len: values.len(),
         })
@@ -212,6 +239,15 @@ impl Ranking {
     /// For each rank (0 = largest), the magnitude there and the first rank holding that same
     /// magnitude. `values` must be the slice the ranking was built from.
     pub fn locate(&self, values: &[f64], ranks: &[usize]) -> Vec<(f64, usize)> {
+        if self.buckets.is_empty() {
+            return ranks
+                .iter()
+                .map(|&r| {
+                    let v = self.sorted.get(r).copied().unwrap_or(0.0);
+                    (v, self.sorted.partition_point(|x| *x > v))
+                })
+                .collect();
+        }
         // bucket and the rank of its first (largest) element, for every non-zero rank asked
         let mut wanted = vec![false; BUCKETS];
         let mut places = Vec::with_capacity(ranks.len());
@@ -220,18 +256,19 @@ impl Ranking {
                 places.push(None);
                 continue;
             }
-            let mut seen = 0usize;
-            let mut b = BUCKETS;
-            while b > 0 {
-                b -= 1;
-                let c = self.buckets[b] as usize;
-                if r < seen + c {
-                    break;
+            // the ranks of bucket b are above[b] .. above[b] + buckets[b], decreasing in b
+            let (mut lo, mut hi) = (0, BUCKETS);
+            while lo < hi {
+                let mid = (lo + hi) / 2;
+                if self.above[mid] + self.buckets[mid] > r as u64 {
+                    lo = mid + 1;
+                } else {
+                    hi = mid;
                 }
-                seen += c;
             }
+            let b = lo - 1;
             wanted[b] = true;
-            places.push(Some((b, seen)));
+            places.push(Some((b, self.above[b] as usize)));
         }
         let mut gathered: Vec<(usize, f64)> = values
             .par_chunks(CHUNK)
@@ -526,39 +563,36 @@ mod tests {
     /// The ranking agrees with a full sort on values that share buckets and tie.
     #[test]
     fn ranking_matches_a_full_sort() {
-        let mut s = 7u64;
-        let values: Vec<f64> = (0..50_000)
-            .map(|i| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                let x = ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 10f64.powi((i % 17) - 8);
-                if i % 11 == 0 {
-                    0.0
-                } else if i % 13 == 0 {
-                    0.25
-                } else {
-                    x
-                }
-            })
-            .collect();
-        let mut sorted: Vec<f64> = values.iter().map(|v| v.abs()).collect();
-        sorted.sort_by(|a, b| b.total_cmp(a));
-        let r = Ranking::new(&values, &Silent).unwrap();
-        let ranks: Vec<usize> = (0..values.len())
-            .step_by(97)
-            .chain([values.len() - 1])
-            .collect();
-        for ((v, first), &rank) in r.locate(&values, &ranks).iter().zip(&ranks) {
-            assert_eq!(*v, sorted[rank]);
-            assert_eq!(*first, sorted.partition_point(|x| x > v));
+        // below and above the size where the ranking switches from sorting to buckets
+        for size in [5_000, 3 * SORT_BELOW] {
+            let mut s = 7u64;
+            let values: Vec<f64> = (0..size as i32)
+                .map(|i| {
+                    s = s
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    let x =
+                        ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 10f64.powi((i % 17) - 8);
+                    if i % 11 == 0 {
+                        0.0
+                    } else if i % 13 == 0 {
+                        0.25
+                    } else {
+                        x
+                    }
+                })
+                .collect();
+            let mut sorted: Vec<f64> = values.iter().map(|v| v.abs()).collect();
+            sorted.sort_by(|a, b| b.total_cmp(a));
+            let r = Ranking::new(&values, &Silent).unwrap();
+            let ranks: Vec<usize> = (0..values.len())
+                .step_by(97)
+                .chain([values.len() - 1])
+                .collect();
+            for ((v, first), &rank) in r.locate(&values, &ranks).iter().zip(&ranks) {
+                assert_eq!(*v, sorted[rank], "size {size} rank {rank}");
+                assert_eq!(*first, sorted.partition_point(|x| x > v));
+            }
         }
-    }
-
-    #[test]
-    fn picture_takes_block_maxima() {
-        let p = picture(&sample(), 2, 0.0);
-        assert_eq!(p.side, 2);
-        assert_eq!(p.values, [3.0, 0.5, 1.0, 4.0]);
     }
 }
