@@ -24,7 +24,7 @@ pub struct Config {
     #[arg(long, env = "WAVRAD_MAX_RESOLUTION", default_value_t = 256)]
     pub max_resolution: usize,
     /// Most unknowns of the projection system; the dense matrix is basis² × 8 bytes
-    /// (4096 → 128 MiB).
+    /// (at most 12 bytes × basis² at peak: 4096 → 192 MiB).
     #[arg(long, env = "WAVRAD_MAX_BASIS_FUNCTIONS", default_value_t = 4096)]
     pub max_basis_functions: usize,
     /// Most pixels of the main image (width × height).
