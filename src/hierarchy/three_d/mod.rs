@@ -284,6 +284,43 @@ impl<'g> Hierarchy<'g> {
         }
     }
 
+    /// The links as a picture of the operator: the finest cells of every surface in Z-order
+    /// (so that every element covers one run of them), receivers down, sources across; each
+    /// link fills its block with the mean kernel value it carries, |T_00| / √(A_r A_s).
+    pub fn picture(&self, max_side: usize) -> crate::compress::MagnitudePicture {
+        let per = 1usize << (2 * self.max_level);
+        let n = self.quads.len() * per;
+        let block = n.div_ceil(max_side).max(1);
+        let side = n.div_ceil(block);
+        let mut values = vec![0.0f64; side * side];
+        let run = |e: &Element| {
+            let shift = self.max_level - e.level;
+            let (cs, ct) = ((e.cell[0] as usize) << shift, (e.cell[1] as usize) << shift);
+            let lo = e.piece.surface * per + morton(cs, ct);
+            let hi = lo + (1usize << (2 * shift));
+            (lo / block)..hi.div_ceil(block)
+        };
+        for l in &self.links {
+            let (r, s) = (
+                &self.elements[l.recv as usize],
+                &self.elements[l.src as usize],
+            );
+            let v = l.block[0].abs() / (r.area * s.area).sqrt();
+            for i in run(r) {
+                for j in run(s) {
+                    let c = &mut values[i * side + j];
+                    *c = c.max(v);
+                }
+            }
+        }
+        crate::compress::MagnitudePicture {
+            side,
+            values,
+            block,
+            cut: 0.0,
+        }
+    }
+
     pub fn stats(&self) -> HierarchyStats {
         HierarchyStats {
             elements: self.elements.len(),
@@ -395,7 +432,7 @@ pub fn solve(
         kept_entries: h.links.len() * kk * kk,
         cut: 0.0,
         magnitudes,
-        picture: None,
+        picture: Some(h.picture(512)),
         solved: Solved {
             b: leaf_b,
             iterations,
@@ -414,4 +451,13 @@ pub fn solve(
 
 fn ms(t: Instant) -> f64 {
     (t.elapsed().as_secs_f64() * 1e6).round() / 1e3
+}
+
+/// Interleaves the bits of (s, t): the Z-order index of a cell of a quadtree level.
+fn morton(s: usize, t: usize) -> usize {
+    let mut out = 0;
+    for b in 0..(usize::BITS / 2) as usize {
+        out |= ((s >> b) & 1) << (2 * b) | ((t >> b) & 1) << (2 * b + 1);
+    }
+    out
 }
