@@ -497,6 +497,33 @@ pub fn picture(m: &Dense, max_side: usize, cut: f64) -> MagnitudePicture {
     }
 }
 
+/// A picture of an operator given as blocks of its `n` rows and columns (the links of a
+/// hierarchy): each block `(rows, columns, magnitude)` fills the picture cells it covers with
+/// the largest magnitude among those covering them.
+pub fn block_picture(
+    n: usize,
+    max_side: usize,
+    blocks: impl Iterator<Item = (std::ops::Range<usize>, std::ops::Range<usize>, f64)>,
+) -> MagnitudePicture {
+    let block = n.div_ceil(max_side.max(1)).max(1);
+    let side = n.div_ceil(block);
+    let mut values = vec![0.0f64; side * side];
+    for (rows, cols, v) in blocks {
+        for i in rows.start / block..rows.end.div_ceil(block) {
+            for j in cols.start / block..cols.end.div_ceil(block) {
+                let c = &mut values[i * side + j];
+                *c = c.max(v);
+            }
+        }
+    }
+    MagnitudePicture {
+        side,
+        values,
+        block,
+        cut: 0.0,
+    }
+}
+
 /// [`picture`] of a sparse matrix.
 pub fn picture_sparse(m: &Csr, max_side: usize, cut: f64) -> MagnitudePicture {
     let block = m.n.div_ceil(max_side.max(1)).max(1);

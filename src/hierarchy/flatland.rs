@@ -527,31 +527,15 @@ impl<'a> Hierarchy<'a> {
     /// it carries, |T_00| / √(|r||s|), so the picture shows the interaction blocks of the
     /// hierarchy (coarse far away, fine near corners and shadows).
     fn picture(&self, resolution: usize, max_side: usize) -> crate::compress::MagnitudePicture {
-        let n = self.segments.len() * resolution;
-        let block = n.div_ceil(max_side).max(1);
-        let side = n.div_ceil(block);
-        let mut values = vec![0.0f64; side * side];
         let cells = |e: &Element| {
-            let lo = e.surface * resolution + (e.range[0] * resolution as f64).round() as usize;
-            let hi = e.surface * resolution + (e.range[1] * resolution as f64).round() as usize;
-            (lo / block)..hi.div_ceil(block)
+            let at = |x: f64| e.surface * resolution + (x * resolution as f64).round() as usize;
+            at(e.range[0])..at(e.range[1])
         };
-        for l in &self.links {
-            let (er, es) = (&self.elements[l.r], &self.elements[l.s]);
+        let blocks = self.links.iter().map(|l| {
             let v = l.t[0].abs() / (self.length(l.r) * self.length(l.s)).sqrt();
-            for i in cells(er) {
-                for j in cells(es) {
-                    let c = &mut values[i * side + j];
-                    *c = c.max(v);
-                }
-            }
-        }
-        crate::compress::MagnitudePicture {
-            side,
-            values,
-            block,
-            cut: 0.0,
-        }
+            (cells(&self.elements[l.r]), cells(&self.elements[l.s]), v)
+        });
+        crate::compress::block_picture(self.segments.len() * resolution, max_side, blocks)
     }
 
     /// A field per surface from the leaves' coefficients chosen by `pick`.

@@ -289,36 +289,21 @@ impl<'g> Hierarchy<'g> {
     /// link fills its block with the mean kernel value it carries, |T_00| / √(A_r A_s).
     pub fn picture(&self, max_side: usize) -> crate::compress::MagnitudePicture {
         let per = 1usize << (2 * self.max_level);
-        let n = self.quads.len() * per;
-        let block = n.div_ceil(max_side).max(1);
-        let side = n.div_ceil(block);
-        let mut values = vec![0.0f64; side * side];
         let run = |e: &Element| {
             let shift = self.max_level - e.level;
             let (cs, ct) = ((e.cell[0] as usize) << shift, (e.cell[1] as usize) << shift);
             let lo = e.piece.surface * per + morton(cs, ct);
-            let hi = lo + (1usize << (2 * shift));
-            (lo / block)..hi.div_ceil(block)
+            lo..lo + (1usize << (2 * shift))
         };
-        for l in &self.links {
+        let blocks = self.links.iter().map(|l| {
             let (r, s) = (
                 &self.elements[l.recv as usize],
                 &self.elements[l.src as usize],
             );
             let v = l.block[0].abs() / (r.area * s.area).sqrt();
-            for i in run(r) {
-                for j in run(s) {
-                    let c = &mut values[i * side + j];
-                    *c = c.max(v);
-                }
-            }
-        }
-        crate::compress::MagnitudePicture {
-            side,
-            values,
-            block,
-            cut: 0.0,
-        }
+            (run(r), run(s), v)
+        });
+        crate::compress::block_picture(self.quads.len() * per, max_side, blocks)
     }
 
     pub fn stats(&self) -> HierarchyStats {
