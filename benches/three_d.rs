@@ -47,7 +47,7 @@ fn rays(c: &mut Criterion) {
         .iter()
         .map(|q| Parallelogram::new(&q.corners))
         .collect();
-    let bvh = Bvh::new(&geo);
+    let bvh = Bvh::occluders(&geo);
     // segments between random points of random pairs of surfaces, as the visibility tests cast
     let mut rng = SplitMix(7);
     let n = 1 << 20;

@@ -47,6 +47,42 @@ impl Bvh {
         bvh
     }
 
+    /// A hierarchy for occlusion queries: it keeps every surface's index but leaves out of the
+    /// tree each surface that has the whole scene on its front side (the walls of a room).
+    /// A segment between two points of the scene stays in that closed half-space, so it can
+    /// meet such a plane only at an end point or by lying in it, neither of which occludes.
+    pub fn occluders(quads: &[Parallelogram]) -> Bvh {
+        let size = quads.iter().map(|q| q.diameter()).fold(0.0, f64::max);
+        let tol = 1e-9 * size;
+        let bounding = |q: &Parallelogram| {
+            quads.iter().all(|o| {
+                o.piece([0.0, 1.0], [0.0, 1.0])
+                    .iter()
+                    .all(|&c| q.side(c) >= -tol)
+            })
+        };
+        let mut bvh = Bvh {
+            quads: quads.to_vec(),
+            nodes: Vec::new(),
+            order: (0..quads.len() as u32)
+                .filter(|&i| !bounding(&quads[i as usize]))
+                .collect(),
+        };
+        if !bvh.order.is_empty() {
+            bvh.build(0, bvh.order.len());
+        }
+        bvh
+    }
+
+    /// How many surfaces the tree holds.
+    pub fn len(&self) -> usize {
+        self.order.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.order.is_empty()
+    }
+
     pub fn quads(&self) -> &[Parallelogram] {
         &self.quads
     }
@@ -309,5 +345,46 @@ mod tests {
             assert_eq!(got.map(|h| h.surface), brute.map(|h| h.surface));
             assert_eq!(bvh.occluded(o, e, [usize::MAX; 2]), brute.is_some());
         }
+    }
+
+    #[test]
+    fn occluders_leave_out_the_walls_of_a_room_and_nothing_else() {
+        // the inside of a unit cube (normals inward) and a small plate floating in it
+        let faces = [
+            [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]],
+            [[0., 0., 1.], [0., 1., 1.], [1., 1., 1.], [1., 0., 1.]],
+            [[0., 0., 0.], [0., 1., 0.], [0., 1., 1.], [0., 0., 1.]],
+            [[1., 0., 0.], [1., 0., 1.], [1., 1., 1.], [1., 1., 0.]],
+            [[0., 0., 0.], [0., 0., 1.], [1., 0., 1.], [1., 0., 0.]],
+            [[0., 1., 0.], [1., 1., 0.], [1., 1., 1.], [0., 1., 1.]],
+            [
+                [0.4, 0.4, 0.5],
+                [0.6, 0.4, 0.5],
+                [0.6, 0.6, 0.5],
+                [0.4, 0.6, 0.5],
+            ],
+        ];
+        let quads: Vec<_> = faces.iter().map(Parallelogram::new).collect();
+        let all = Bvh::new(&quads);
+        let occ = Bvh::occluders(&quads);
+        assert_eq!(occ.len(), 1);
+        // the same answers as the full tree for segments between points of the surfaces
+        let mut seed = 99u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut blocked = 0;
+        for _ in 0..4000 {
+            let (i, k) = ((rnd() * 7.0) as usize, (rnd() * 7.0) as usize);
+            let a = quads[i].at(rnd(), rnd());
+            let b = quads[k].at(rnd(), rnd());
+            let want = all.occluded(a, b, [i, k]);
+            assert_eq!(occ.occluded(a, b, [i, k]), want, "{a:?} {b:?}");
+            blocked += want as usize;
+        }
+        assert!(blocked > 20, "{blocked}");
     }
 }

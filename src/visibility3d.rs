@@ -33,8 +33,13 @@ impl Piece {
     }
 }
 
-/// Whether the parallelogram `q` may meet the convex hull of `points` (conservative).
-pub fn may_occlude(points: &[V3], q: &Parallelogram) -> bool {
+/// Whether the parallelogram `q` may meet the convex hull of `points` (conservative). With
+/// `thorough`, every candidate axis of the hull is tried (its edges and faces through any of
+/// the points); without, only the axes that are cheap and decide most pairs of a room: `q`'s
+/// normal, the coordinate axes, the normals of the two pieces and the cross products of their
+/// edges with `q`'s. The per-element test runs for every link, where a dozen rays cost less
+/// than the ~100 axes of the thorough test; the per-surface test runs once.
+pub fn may_occlude(points: &[V3; 8], thorough: bool, q: &Parallelogram) -> bool {
     let qc = q.piece([0.0, 1.0], [0.0, 1.0]);
     let scale = q.diameter()
         + points
@@ -64,6 +69,21 @@ pub fn may_occlude(points: &[V3], q: &Parallelogram) -> bool {
     if separated(q.n) || (0..3).any(|a| separated(unit(a))) {
         return false;
     }
+    // the two pieces (points 0..4 and 4..8): their planes and edges
+    for c in [&points[0..4], &points[4..8]] {
+        let (e1, e3) = (sub(c[1], c[0]), sub(c[3], c[0]));
+        if separated(cross(e1, e3)) {
+            return false;
+        }
+        for e in [e1, e3] {
+            if separated(cross(e, q.e1)) || separated(cross(e, q.e3)) {
+                return false;
+            }
+        }
+    }
+    if !thorough {
+        return true;
+    }
     for (i, a) in points.iter().enumerate() {
         for b in &points[i + 1..] {
             let d = sub(*b, *a);
@@ -91,12 +111,14 @@ fn unit(a: usize) -> V3 {
     v
 }
 
-/// The surfaces that may occlude some ray between pieces `a` and `b`, out of `candidates`.
+/// The surfaces that may occlude some ray between pieces `a` and `b`, out of `candidates`
+/// (see [`may_occlude`] for `thorough`).
 pub fn occluders_of(
     quads: &[Parallelogram],
     a: Piece,
     b: Piece,
     candidates: &[usize],
+    thorough: bool,
 ) -> Vec<usize> {
     let ca = a.corners(quads);
     let cb = b.corners(quads);
@@ -104,7 +126,7 @@ pub fn occluders_of(
     candidates
         .iter()
         .copied()
-        .filter(|&k| k != a.surface && k != b.surface && may_occlude(&pts, &quads[k]))
+        .filter(|&k| k != a.surface && k != b.surface && may_occlude(&pts, thorough, &quads[k]))
         .collect()
 }
 
@@ -115,7 +137,7 @@ pub fn surface_occluders(quads: &[Parallelogram]) -> Vec<Vec<usize>> {
     let mut out = vec![Vec::new(); n * n];
     for i in 0..n {
         for j in i + 1..n {
-            let o = occluders_of(quads, Piece::whole(i), Piece::whole(j), &all);
+            let o = occluders_of(quads, Piece::whole(i), Piece::whole(j), &all, true);
             out[j * n + i] = o.clone();
             out[i * n + j] = o;
         }
@@ -147,11 +169,17 @@ pub fn pair_seed(a: u64, b: u64) -> u64 {
     r.next_u64()
 }
 
-/// The fraction of `n × n` stratified ray pairs between `a` and `b` that no surface in
-/// `occluders` blocks; the number of rays cast is added to `rays`.
+/// The visible fraction of the transfer between `a` and `b`: over a stratified `n × n` set of
+/// point pairs, Σ w V / Σ w with w the point-to-disc kernel cosθa cosθb / (π r² + A) (A the
+/// smaller piece's area, which keeps the weight finite for touching pieces). Pairs that do not
+/// face each other carry no weight and cast no ray: counting them would make a block's
+/// back-facing part, which a ray through the block itself always finds occluded, darken its
+/// front. Returns 0 when no pair faces; the number of rays cast is added to `rays`.
 pub fn visible_fraction(bvh: &Bvh, a: Piece, b: Piece, n: usize, seed: u64, rays: &mut u64) -> f64 {
     let quads = bvh.quads();
     let (qa, qb) = (&quads[a.surface], &quads[b.surface]);
+    let area = |p: &Piece, q: &Parallelogram| q.area * (p.s[1] - p.s[0]) * (p.t[1] - p.t[0]);
+    let disc = area(&a, qa).min(area(&b, qb)) / std::f64::consts::PI;
     let mut rng = SplitMix(seed);
     let m = n * n;
     let mut perm: Vec<usize> = (0..m).collect();
@@ -159,7 +187,7 @@ pub fn visible_fraction(bvh: &Bvh, a: Piece, b: Piece, n: usize, seed: u64, rays
         let j = (rng.next_u64() % (i as u64 + 1)) as usize;
         perm.swap(i, j);
     }
-    let mut visible = 0usize;
+    let (mut seen, mut total) = (0.0, 0.0);
     let cell = 1.0 / n as f64;
     for (i, &j) in perm.iter().enumerate() {
         let (ia, ja) = (i % n, i / n);
@@ -168,12 +196,25 @@ pub fn visible_fraction(bvh: &Bvh, a: Piece, b: Piece, n: usize, seed: u64, rays
         let ta = a.t[0] + (a.t[1] - a.t[0]) * (ja as f64 + rng.next_f64()) * cell;
         let sb = b.s[0] + (b.s[1] - b.s[0]) * (ib as f64 + rng.next_f64()) * cell;
         let tb = b.t[0] + (b.t[1] - b.t[0]) * (jb as f64 + rng.next_f64()) * cell;
+        let (x, y) = (qa.at(sa, ta), qb.at(sb, tb));
+        let d = sub(y, x);
+        let (ca, cb) = (dot(d, qa.n), -dot(d, qb.n));
+        if ca <= 0.0 || cb <= 0.0 {
+            continue;
+        }
+        let r2 = dot(d, d);
+        let w = ca * cb / (r2 * (r2 + disc));
+        total += w;
         *rays += 1;
-        if !bvh.occluded(qa.at(sa, ta), qb.at(sb, tb), [a.surface, b.surface]) {
-            visible += 1;
+        if !bvh.occluded(x, y, [a.surface, b.surface]) {
+            seen += w;
         }
     }
-    visible as f64 / m as f64
+    if total > 0.0 {
+        seen / total
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]

@@ -46,7 +46,7 @@ impl Geometry {
             }
         }
         Geometry {
-            bvh: Bvh::new(&quads),
+            bvh: Bvh::occluders(&quads),
             occluders: visibility3d::surface_occluders(&quads),
             facing,
             quads,
@@ -86,7 +86,7 @@ impl Geometry {
     /// between them; rays cast are added to `rays`.
     pub fn visibility(&self, a: Piece, b: Piece, seed: u64, grid: usize, rays: &mut u64) -> f64 {
         let cand = &self.occluders[a.surface * self.len() + b.surface];
-        if cand.is_empty() || occluders_of(&self.quads, a, b, cand).is_empty() {
+        if cand.is_empty() || occluders_of(&self.quads, a, b, cand, false).is_empty() {
             return 1.0;
         }
         visibility3d::visible_fraction(&self.bvh, a, b, grid, seed, rays)

@@ -109,15 +109,13 @@ impl<'g> Hierarchy<'g> {
     /// Links every pair of facing surfaces, refined against the current B.
     pub fn link_all(&mut self, progress: &dyn Progress) -> Result<(), Cancelled> {
         let n = self.quads.len();
+        let pairs: Vec<(u32, u32)> = (0..n)
+            .flat_map(|i| (0..n).map(move |j| (i, j)))
+            .filter(|&(i, j)| i != j && self.geo.facing(i, j))
+            .map(|(i, j)| (i as u32, j as u32))
+            .collect();
         let mut pending = Vec::new();
-        for i in 0..n {
-            for j in 0..n {
-                if i != j && self.geo.facing(i, j) {
-                    self.refine(i as u32, j as u32, &mut pending);
-                }
-            }
-            progress.check()?;
-        }
+        self.refine_all(pairs, &mut pending, progress)?;
         self.links = self.make_links(&pending, progress)?;
         self.sort_links();
         Ok(())
@@ -127,8 +125,8 @@ impl<'g> Hierarchy<'g> {
     pub fn rerefine(&mut self, progress: &dyn Progress) -> Result<usize, Cancelled> {
         let old = std::mem::take(&mut self.links);
         let mut keep = Vec::with_capacity(old.len());
-        let mut pending = Vec::new();
-        let mut refined = 0;
+        let mut again = Vec::new();
+        let mut blocks = std::collections::HashMap::new();
         for l in old {
             let r = &self.elements[l.recv as usize];
             let err =
@@ -136,22 +134,24 @@ impl<'g> Hierarchy<'g> {
             let can =
                 r.level < self.max_level || self.elements[l.src as usize].level < self.max_level;
             if can && err > self.threshold {
-                refined += 1;
-                let before = pending.len();
-                self.refine(l.recv, l.src, &mut pending);
-                // the same pair may come back unrefined (its estimate changed); keep its block
-                if pending.len() == before + 1
-                    && pending[before].0 == l.recv
-                    && pending[before].1 == l.src
-                {
-                    pending.pop();
-                    refined -= 1;
-                    keep.push(l);
-                }
+                again.push((l.recv, l.src));
+                blocks.insert((l.recv, l.src), l);
             } else {
                 keep.push(l);
             }
         }
+        let mut pending = Vec::new();
+        self.refine_all(again, &mut pending, progress)?;
+        // a pair may come back unrefined (its estimate changed): keep its block
+        let mut refined = blocks.len();
+        pending.retain(|p| match blocks.remove(&(p.0, p.1)) {
+            Some(l) => {
+                refined -= 1;
+                keep.push(l);
+                false
+            }
+            None => true,
+        });
         keep.extend(self.make_links(&pending, progress)?);
         self.links = keep;
         self.sort_links();

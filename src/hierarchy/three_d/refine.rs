@@ -9,8 +9,8 @@
 //! err = ρ_R · B̄_S · F̂(R ← S) · (d / (d + dist))^(m+1)
 //! ```
 //!
-//! with F̂ the largest point-to-disc form factor A_S cosθR cosθS / (π r² + A_S) over a few
-//! sample points, d the larger diameter and dist the distance of the two pieces. A partly
+//! with F̂ the largest point-to-piece form factor from a few points of R to S (in closed
+//! form), d the larger diameter and dist the distance of the two pieces. A partly
 //! visible pair loses the smoothness factor (a shadow edge is not a polynomial). When err is
 //! above ε times the brightest emission, the larger element is split (down to the finest level
 //! allowed) and its children are linked instead; otherwise the pair becomes a link whose k² × k²
@@ -20,10 +20,21 @@ use super::tree::{push, Element, NONE};
 use super::Hierarchy;
 use crate::progress::{Cancelled, Progress};
 use crate::projection::three_d::VISIBILITY_GRID;
-use crate::space::{dot, norm, quad_quad, sub};
+use crate::space::{norm, quad_quad, sub};
 use crate::transfer::{self, Integrand};
 use crate::visibility3d::{pair_seed, Piece};
 use rayon::prelude::*;
+
+/// What the oracle makes of a pair.
+#[derive(Debug, Clone, Copy)]
+enum Verdict {
+    /// Refine: split the larger element and judge its children against the other.
+    Split,
+    /// Accept as a link with this geometric factor and visible fraction.
+    Link(f64, f64),
+    /// Accept, but no ray got through: no link.
+    Hidden,
+}
 
 /// An interaction from `src` to `recv`.
 #[derive(Debug, Clone)]
@@ -48,44 +59,33 @@ impl Hierarchy<'_> {
             | el.cell[0] as u64
     }
 
-    /// (F̂, smoothness factor) of the oracle.
+    /// (F̂, smoothness factor) of the oracle. F̂ is the largest unoccluded form factor from a
+    /// point of the receiver to the whole source piece, in closed form
+    /// ([`transfer::point_polygon`], clipped to the point's horizon) at a 3 × 3 grid of points
+    /// that reaches the receiver's edges: the part of a source that a receiver sees may be a
+    /// thin strip next to their common line (the floor in front of a box), which interior
+    /// samples miss.
     fn estimate(&self, r: u32, s: u32) -> (f64, f64) {
         let (er, es) = (&self.elements[r as usize], &self.elements[s as usize]);
         let qr = &self.geo.quads[er.piece.surface];
         let qs = &self.geo.quads[es.piece.surface];
-        let samples = |p: &Piece| {
-            let at = |u: f64, v: f64| {
-                (
-                    p.s[0] + u * (p.s[1] - p.s[0]),
-                    p.t[0] + v * (p.t[1] - p.t[0]),
-                )
-            };
-            [
-                at(0.5, 0.5),
-                at(0.2, 0.2),
-                at(0.8, 0.2),
-                at(0.2, 0.8),
-                at(0.8, 0.8),
-            ]
-        };
-        let mut f: f64 = 0.0;
-        for (sr, tr) in samples(&er.piece) {
-            let x = qr.at(sr, tr);
-            for (ss, ts) in samples(&es.piece) {
-                let y = qs.at(ss, ts);
-                let d = sub(y, x);
-                let r2 = dot(d, d);
-                let cr = dot(d, qr.n);
-                let cs = -dot(d, qs.n);
-                if cr <= 0.0 || cs <= 0.0 {
-                    continue;
-                }
-                let cos2 = cr * cs / r2;
-                f = f.max(es.area * cos2 / (std::f64::consts::PI * r2 + es.area));
-            }
-        }
         let ca = qr.piece(er.piece.s, er.piece.t);
         let cb = qs.piece(es.piece.s, es.piece.t);
+        const AT: [f64; 3] = [0.01, 0.5, 0.99];
+        let p = &er.piece;
+        let mut f: f64 = 0.0;
+        for v in AT {
+            for u in AT {
+                let x = qr.at(
+                    p.s[0] + u * (p.s[1] - p.s[0]),
+                    p.t[0] + v * (p.t[1] - p.t[0]),
+                );
+                // a point behind the source's plane receives nothing from it
+                if qs.side(x) > 0.0 {
+                    f = f.max(transfer::point_polygon(x, qr.n, &cb));
+                }
+            }
+        }
         let size = norm(sub(ca[2], ca[0])).max(norm(sub(cb[2], cb[0])));
         let dist = quad_quad(&ca, qr.n, &cb, qs.n);
         (f, (size / (size + dist)).powi(self.k as i32))
@@ -148,16 +148,16 @@ impl Hierarchy<'_> {
         self.elements[e as usize].level < self.max_level
     }
 
-    /// Refines the interaction from `s` to `r`, appending accepted (recv, src, geom, V) pairs.
-    pub(super) fn refine(&mut self, r: u32, s: u32, out: &mut Vec<(u32, u32, f64, f64)>) {
+    /// The oracle's verdict on one pair, with the element tree as it is: read-only, so that
+    /// a whole frontier of pairs is judged in parallel (the rays are most of the work).
+    fn judge(&self, r: u32, s: u32) -> (Verdict, u64) {
         let rho = self.rho[self.elements[r as usize].piece.surface];
         let b = self.elements[s as usize].brightness();
         let (f, smooth) = self.estimate(r, s);
         let thr = self.threshold;
         let can = self.splittable(r) || self.splittable(s);
         if can && rho * b * f * smooth > thr {
-            self.descend(r, s, out);
-            return;
+            return (Verdict::Split, 0);
         }
         let (pr, ps) = (
             self.elements[r as usize].piece,
@@ -168,33 +168,57 @@ impl Hierarchy<'_> {
         let v = self
             .geo
             .visibility(pr, ps, seed, VISIBILITY_GRID, &mut rays);
-        self.rays += rays;
-        if v == 0.0 {
-            return;
-        }
+        // partly visible, or hidden as far as the few sampled rays can tell (a big pair's
+        // light may pass through a gap none of them found): no smoothness credit
         let geom = if v < 1.0 { f } else { f * smooth };
         if can && rho * b * geom > thr {
-            self.descend(r, s, out);
-            return;
+            return (Verdict::Split, rays);
         }
-        out.push((r, s, geom, v));
+        if v > 0.0 {
+            (Verdict::Link(geom, v), rays)
+        } else {
+            (Verdict::Hidden, rays)
+        }
     }
 
-    fn descend(&mut self, r: u32, s: u32, out: &mut Vec<(u32, u32, f64, f64)>) {
-        let split_r = self.splittable(r)
-            && (!self.splittable(s)
-                || self.elements[r as usize].area >= self.elements[s as usize].area);
-        if split_r {
-            let c = self.split(r);
-            for i in 0..4 {
-                self.refine(c + i, s, out);
+    /// Refines the interactions `pairs` (receiver, source) top-down, appending the accepted
+    /// (recv, src, geom, V) to `out` in a fixed order. Each level's pairs are judged in
+    /// parallel; the splits they ask for are then made in order, so the elements are numbered
+    /// the same on every run.
+    pub(super) fn refine_all(
+        &mut self,
+        mut pairs: Vec<(u32, u32)>,
+        out: &mut Vec<(u32, u32, f64, f64)>,
+        progress: &dyn Progress,
+    ) -> Result<(), Cancelled> {
+        while !pairs.is_empty() {
+            progress.check()?;
+            let verdicts: Vec<(Verdict, u64)> =
+                pairs.par_iter().map(|&(r, s)| self.judge(r, s)).collect();
+            let mut next = Vec::new();
+            for (&(r, s), (verdict, rays)) in pairs.iter().zip(verdicts) {
+                self.rays += rays;
+                match verdict {
+                    Verdict::Split => {
+                        let split_r = self.splittable(r)
+                            && (!self.splittable(s)
+                                || self.elements[r as usize].area
+                                    >= self.elements[s as usize].area);
+                        if split_r {
+                            let c = self.split(r);
+                            next.extend((0..4).map(|i| (c + i, s)));
+                        } else {
+                            let c = self.split(s);
+                            next.extend((0..4).map(|i| (r, c + i)));
+                        }
+                    }
+                    Verdict::Link(geom, v) => out.push((r, s, geom, v)),
+                    Verdict::Hidden => {}
+                }
             }
-        } else {
-            let c = self.split(s);
-            for i in 0..4 {
-                self.refine(r, c + i, out);
-            }
+            pairs = next;
         }
+        Ok(())
     }
 
     /// Integrates the blocks of accepted pairs, in parallel.

@@ -1,0 +1,440 @@
+//! The 3D solvers against an independent Monte Carlo reference.
+//!
+//! The reference below shares no code with the library: it reads the scene's JSON itself,
+//! intersects rays with the parallelograms by brute force, and estimates the radiosity
+//! equation B(x) = E(x) + ρ(x) ∫ B(y) cosθx cosθy / (π r²) V(x, y) dA_y by path tracing with
+//! next-event estimation (a light point sampled on every emitter at every vertex) and Russian
+//! roulette. It returns cell means on the same `grid × grid` split as the result, each with its
+//! standard error, so the comparison can tell a real difference from sampling noise.
+
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+use serde_json::{json, Value};
+use wavrad::job;
+use wavrad::progress::Silent;
+use wavrad::scene::{parse_value, Limits};
+
+type V3 = [f64; 3];
+
+fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+fn scale(a: V3, s: f64) -> V3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn mul(a: V3, b: V3) -> V3 {
+    [a[0] * b[0], a[1] * b[1], a[2] * b[2]]
+}
+
+/// One parallelogram p(s, t) = p0 + s e1 + t e2 as the spec defines it.
+struct Quad {
+    p0: V3,
+    e1: V3,
+    e2: V3,
+    n: V3,
+    area: f64,
+    rho: V3,
+    emission: V3,
+    region: ([f64; 2], [f64; 2]),
+}
+
+impl Quad {
+    fn at(&self, s: f64, t: f64) -> V3 {
+        add(self.p0, add(scale(self.e1, s), scale(self.e2, t)))
+    }
+
+    /// The distance along `dir` from `o` to this parallelogram, if the ray meets it.
+    fn hit(&self, o: V3, dir: V3) -> Option<f64> {
+        // Möller–Trumbore for a parallelogram: solve o + h dir = p0 + s e1 + t e2
+        let p = cross(dir, self.e2);
+        let det = dot(self.e1, p);
+        if det.abs() < 1e-300 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let q = sub(o, self.p0);
+        let s = dot(q, p) * inv;
+        if !(0.0..=1.0).contains(&s) {
+            return None;
+        }
+        let r = cross(q, self.e1);
+        let t = dot(dir, r) * inv;
+        if !(0.0..=1.0).contains(&t) {
+            return None;
+        }
+        Some(dot(self.e2, r) * inv)
+    }
+
+    fn emits(&self, s: f64, t: f64) -> bool {
+        let (rs, rt) = self.region;
+        rs[0] <= s && s <= rs[1] && rt[0] <= t && t <= rt[1]
+    }
+}
+
+fn rgb(v: Option<&Value>, default: f64) -> V3 {
+    match v {
+        None => [default; 3],
+        Some(Value::Array(a)) => [0, 1, 2].map(|i| a[i].as_f64().expect("number")),
+        Some(x) => [x.as_f64().expect("number"); 3],
+    }
+}
+
+fn point(v: &Value) -> V3 {
+    [0, 1, 2].map(|i| v[i].as_f64().expect("coordinate"))
+}
+
+fn quads(doc: &Value) -> Vec<Quad> {
+    doc["scene"]["surfaces"]
+        .as_array()
+        .expect("surfaces")
+        .iter()
+        .map(|s| {
+            let c = s["corners"].as_array().expect("corners");
+            let p0 = point(&c[0]);
+            let e1 = sub(point(&c[1]), p0);
+            let e2 = sub(point(&c[3]), p0);
+            let n = cross(e1, e2);
+            let area = dot(n, n).sqrt();
+            let region = match s.get("emission_region") {
+                Some(r) => (
+                    [r["s"][0].as_f64().unwrap(), r["s"][1].as_f64().unwrap()],
+                    [r["t"][0].as_f64().unwrap(), r["t"][1].as_f64().unwrap()],
+                ),
+                None => ([0.0, 1.0], [0.0, 1.0]),
+            };
+            Quad {
+                p0,
+                e1,
+                e2,
+                n: scale(n, 1.0 / area),
+                area,
+                rho: rgb(s.get("reflectance"), 0.0),
+                emission: rgb(s.get("emission"), 0.0),
+                region,
+            }
+        })
+        .collect()
+}
+
+struct Tracer {
+    quads: Vec<Quad>,
+    emitters: Vec<usize>,
+    /// A length far below any feature of the scene, to step off surfaces.
+    eps: f64,
+}
+
+impl Tracer {
+    fn new(doc: &Value) -> Tracer {
+        let quads = quads(doc);
+        let emitters = (0..quads.len())
+            .filter(|&i| quads[i].emission.iter().any(|&e| e > 0.0))
+            .collect();
+        let size = quads
+            .iter()
+            .map(|q| dot(q.e1, q.e1).max(dot(q.e2, q.e2)).sqrt())
+            .fold(0.0, f64::max);
+        Tracer {
+            quads,
+            emitters,
+            eps: 1e-9 * size,
+        }
+    }
+
+    /// The nearest surface the ray from `o` along the unit `dir` meets, other than `skip`.
+    fn nearest(&self, o: V3, dir: V3, skip: usize) -> Option<(usize, f64)> {
+        let mut best: Option<(usize, f64)> = None;
+        for (i, q) in self.quads.iter().enumerate() {
+            if i == skip {
+                continue;
+            }
+            if let Some(h) = q.hit(o, dir) {
+                if h > self.eps && best.is_none_or(|(_, b)| h < b) {
+                    best = Some((i, h));
+                }
+            }
+        }
+        best
+    }
+
+    /// Whether anything but surfaces `a` and `b` lies strictly between x and y.
+    fn blocked(&self, x: V3, y: V3, a: usize, b: usize) -> bool {
+        let d = sub(y, x);
+        let len = dot(d, d).sqrt();
+        let dir = scale(d, 1.0 / len);
+        self.quads.iter().enumerate().any(|(i, q)| {
+            i != a
+                && i != b
+                && q.hit(x, dir)
+                    .is_some_and(|h| h > self.eps && h < len - self.eps)
+        })
+    }
+
+    /// Irradiance / π from every emitter at x on surface `on`, one light sample each.
+    fn direct(&self, x: V3, on: usize, rng: &mut SmallRng) -> V3 {
+        let n = self.quads[on].n;
+        let mut sum = [0.0; 3];
+        for &l in &self.emitters {
+            if l == on {
+                continue;
+            }
+            let q = &self.quads[l];
+            let (rs, rt) = q.region;
+            let s = rs[0] + (rs[1] - rs[0]) * rng.random::<f64>();
+            let t = rt[0] + (rt[1] - rt[0]) * rng.random::<f64>();
+            let y = q.at(s, t);
+            let d = sub(y, x);
+            let r2 = dot(d, d);
+            let cx = dot(d, n);
+            let cy = -dot(d, q.n);
+            if cx <= 0.0 || cy <= 0.0 || self.blocked(x, y, on, l) {
+                continue;
+            }
+            let area = q.area * (rs[1] - rs[0]) * (rt[1] - rt[0]);
+            let g = cx * cy / (std::f64::consts::PI * r2 * r2) * area;
+            sum = add(sum, scale(q.emission, g));
+        }
+        sum
+    }
+
+    /// ∫ B(y) cos/(π r²) V dA_y at x on `on`, without the emitters' own E (counted by `direct`).
+    fn gathered(&self, x: V3, on: usize, rng: &mut SmallRng) -> V3 {
+        let mut total = self.direct(x, on, rng);
+        // one cosine-distributed direction: its estimator of ∫ B cosθx/π dω is B(y) itself
+        let n = self.quads[on].n;
+        let (u1, u2): (f64, f64) = (rng.random(), rng.random());
+        let (r, phi) = (u1.sqrt(), 2.0 * std::f64::consts::PI * u2);
+        let a = if n[0].abs() > 0.5 {
+            [0.0, 1.0, 0.0]
+        } else {
+            [1.0, 0.0, 0.0]
+        };
+        let b1 = cross(n, a);
+        let b1 = scale(b1, 1.0 / dot(b1, b1).sqrt());
+        let b2 = cross(n, b1);
+        let dir = add(
+            add(scale(b1, r * phi.cos()), scale(b2, r * phi.sin())),
+            scale(n, (1.0 - u1).sqrt()),
+        );
+        if let Some((hit, h)) = self.nearest(x, dir, on) {
+            let q = &self.quads[hit];
+            if dot(dir, q.n) < 0.0 {
+                let keep = q.rho.iter().copied().fold(0.0, f64::max);
+                if keep > 0.0 && rng.random::<f64>() < keep {
+                    let y = add(x, scale(dir, h));
+                    let more = self.gathered(y, hit, rng);
+                    total = add(total, scale(mul(q.rho, more), 1.0 / keep));
+                }
+            }
+        }
+        total
+    }
+
+    /// Cell means of B on every surface (`grid × grid`, rows by t then s) from
+    /// `per_side²` stratified samples per cell, with their standard errors.
+    fn cells(&self, grid: usize, per_side: usize, seed: u64) -> Vec<Vec<(V3, V3)>> {
+        (0..self.quads.len())
+            .map(|on| {
+                (0..grid * grid)
+                    .into_par_iter()
+                    .map(|cell| {
+                        let (ci, cj) = (cell % grid, cell / grid);
+                        let mut rng = SmallRng::seed_from_u64(
+                            seed ^ ((on as u64) << 40) ^ ((cell as u64) << 8),
+                        );
+                        let q = &self.quads[on];
+                        let (mut sum, mut sq) = ([0.0; 3], [0.0; 3]);
+                        for k in 0..per_side * per_side {
+                            let s = (ci as f64
+                                + ((k % per_side) as f64 + rng.random::<f64>()) / per_side as f64)
+                                / grid as f64;
+                            let t = (cj as f64
+                                + ((k / per_side) as f64 + rng.random::<f64>()) / per_side as f64)
+                                / grid as f64;
+                            let x = q.at(s, t);
+                            let e = if q.emits(s, t) { q.emission } else { [0.0; 3] };
+                            let b = add(e, mul(q.rho, self.gathered(x, on, &mut rng)));
+                            sum = add(sum, b);
+                            sq = add(sq, mul(b, b));
+                        }
+                        let m = (per_side * per_side) as f64;
+                        let mean = scale(sum, 1.0 / m);
+                        let err = [0, 1, 2]
+                            .map(|c| ((sq[c] / m - mean[c] * mean[c]).max(0.0) / (m - 1.0)).sqrt());
+                        (mean, err)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+fn scene_file(name: &str) -> Value {
+    let path = format!("{}/scenes/{name}.json", env!("CARGO_MANIFEST_DIR"));
+    serde_json::from_str(&std::fs::read_to_string(path).expect("scene file")).expect("json")
+}
+
+/// A solution against the reference.
+struct Comparison {
+    /// Per surface (not emitting): name, the largest |solver / reference − 1| over the
+    /// channels, and that channel's relative standard error of the reference.
+    surfaces: Vec<(String, f64, f64)>,
+    /// Relative L2 gap of all cell means of the surfaces that do not emit.
+    cells: f64,
+    /// The same for the reference's own sampling error.
+    cells_noise: f64,
+}
+
+fn compare(doc: &Value, per_side: usize, label: &str) -> Comparison {
+    let grid = doc["output"]["grid"].as_u64().unwrap_or(8) as usize;
+    let tracer = Tracer::new(doc);
+    let reference = tracer.cells(grid, per_side, 0x5eed);
+    let j = parse_value(doc, &Limits::default()).expect("valid document");
+    let out = job::run(&j, &Silent).expect("solves");
+    let mut surfaces = Vec::new();
+    let (mut gap2, mut noise2, mut norm2) = (0.0, 0.0, 0.0);
+    eprintln!("{label}: surface means, solver / path traced − 1 (± 1 standard error)");
+    for ((s, cells), q) in out
+        .result
+        .surfaces
+        .iter()
+        .zip(&reference)
+        .zip(&tracer.quads)
+    {
+        if q.emission.iter().any(|&e| e > 0.0) {
+            continue;
+        }
+        let m = cells.len() as f64;
+        let mut line = format!("  {:12}", s.name);
+        let (mut worst, mut noise) = (0.0_f64, 0.0);
+        for c in 0..3 {
+            let mean: f64 = cells.iter().map(|(v, _)| v[c]).sum::<f64>() / m;
+            let err: f64 = cells.iter().map(|(_, e)| e[c] * e[c]).sum::<f64>().sqrt() / m;
+            let rel = s.mean[c] / mean - 1.0;
+            line += &format!(" {:+7.2}% ±{:.2}%", 100.0 * rel, 100.0 * err / mean);
+            if rel.abs() > worst {
+                (worst, noise) = (rel.abs(), err / mean);
+            }
+        }
+        eprintln!("{line}");
+        surfaces.push((s.name.clone(), worst, noise));
+        for (got, (want, err)) in s.cells.iter().zip(cells) {
+            for c in 0..3 {
+                gap2 += (got[c] - want[c]).powi(2);
+                noise2 += err[c] * err[c];
+                norm2 += want[c] * want[c];
+            }
+        }
+    }
+    let cmp = Comparison {
+        surfaces,
+        cells: (gap2 / norm2).sqrt(),
+        cells_noise: (noise2 / norm2).sqrt(),
+    };
+    eprintln!(
+        "  cell means: relative L2 gap {:.2}% (reference noise {:.2}%)",
+        100.0 * cmp.cells,
+        100.0 * cmp.cells_noise
+    );
+    cmp
+}
+
+/// Every surface mean within `walls` (the five walls and the two tops, lit directly) or
+/// `faces` (the block sides, lit mostly by other surfaces) of the reference, beyond four of
+/// its standard errors.
+fn assert_within(c: &Comparison, walls: f64, faces: f64) {
+    for (name, gap, noise) in &c.surfaces {
+        let bound = if name.contains('-')
+            && !name.ends_with("-top")
+            && !name.contains("green")
+            && !name.contains("red")
+        {
+            faces
+        } else {
+            walls
+        };
+        assert!(
+            *gap < bound + 4.0 * noise,
+            "{name}: {:.2}% off (allowed {:.2}% + 4 × {:.2}%)",
+            100.0 * gap,
+            100.0 * bound,
+            100.0 * noise
+        );
+    }
+}
+
+#[test]
+fn the_reference_passes_the_furnace() {
+    // every face of a closed cube emits 1 and reflects 0.5: B = 2 everywhere
+    let faces = [
+        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
+        [[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]],
+        [[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1]],
+        [[1, 0, 0], [1, 0, 1], [1, 1, 1], [1, 1, 0]],
+        [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]],
+        [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]],
+    ];
+    let surfaces: Vec<Value> = faces
+        .iter()
+        .map(|c| json!({ "corners": c, "reflectance": 0.5, "emission": 1.0 }))
+        .collect();
+    let tracer = Tracer::new(&json!({ "scene": { "surfaces": surfaces } }));
+    for surface in tracer.cells(2, 16, 1) {
+        for (mean, err) in surface {
+            for c in 0..3 {
+                assert!(
+                    (mean[c] - 2.0).abs() < 4.0 * err[c] + 1e-3,
+                    "{mean:?} ± {err:?}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn cornell_box_approaches_path_tracing_as_epsilon_shrinks() {
+    // measured (ε = 1e-3, the document's own): walls and tops within 5.3 %, block sides within
+    // 15 %, cell means 4.2 % (L2); at ε = 2.5e-4: 2.0 %, 6 % and 2.6 %. Before the visible
+    // fraction was weighted by the kernel and the oracle looked at the receiver's edges, the
+    // block sides were off by up to 144 % and the walls by 12 %.
+    let mut doc = scene_file("cornell-box");
+    let default = compare(&doc, 32, "Cornell box, ε = 1e-3 (default)");
+    assert_within(&default, 0.06, 0.16);
+    doc["solver"]["epsilon"] = json!(2.5e-4);
+    let fine = compare(&doc, 32, "Cornell box, ε = 2.5e-4");
+    assert_within(&fine, 0.025, 0.07);
+    // the L2 gaps include the reference's own noise (1.7 %)
+    assert!(default.cells < 0.05, "{}", default.cells);
+    assert!(
+        fine.cells < 0.75 * default.cells,
+        "{} {}",
+        fine.cells,
+        default.cells
+    );
+    assert!(fine.cells < 0.035, "{}", fine.cells);
+}
+
+#[test]
+fn a_box_face_lit_only_by_the_floor_in_front_of_it() {
+    // the floor, the light and the short block's front face alone: the face is behind the
+    // light and sees only a strip of the floor next to their common line
+    let base = scene_file("cornell-box");
+    let s = base["scene"]["surfaces"].as_array().expect("surfaces");
+    let mut doc = base.clone();
+    doc["scene"]["surfaces"] = json!([s[0], s[5], s[12]]);
+    let c = compare(&doc, 32, "floor, light, short-front");
+    assert_within(&c, 0.01, 0.20);
+}
