@@ -77,8 +77,8 @@ pub struct Metrics {
     pub final_residual: f64,
     /// The relative change of B at each sweep.
     pub residual_history: Vec<f64>,
-    /// Evaluations of the kernel K(x, y) that the matrix or the links took (flatland and
-    /// fredholm; the 3D integrators do not count them).
+    /// Evaluations of the kernel K(x, y) that the matrix or the links took (in 3D a
+    /// closed-form point-to-polygon form factor counts as one).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kernel_evaluations: Option<u64>,
     pub energy: EnergyBalance,

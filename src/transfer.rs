@@ -73,6 +73,8 @@ pub enum Integrand {
 }
 
 /// Adds the transfer from `b` to `a` to `out` (k² × k² for Galerkin, 1 for Squared).
+/// Returns the number of kernel evaluations (a closed-form point-to-polygon form factor
+/// counts as one).
 pub fn block(
     quads: &[Parallelogram],
     a: Piece,
@@ -80,7 +82,7 @@ pub fn block(
     what: Integrand,
     acc: Accuracy,
     out: &mut [f64],
-) {
+) -> u64 {
     let (qa, qb) = (&quads[a.surface], &quads[b.surface]);
     let area = |q: &Parallelogram, p: &Piece| q.area * (p.s[1] - p.s[0]) * (p.t[1] - p.t[0]);
     let (k, scale) = match what {
@@ -99,8 +101,10 @@ pub fn block(
         squared: what == Integrand::Squared,
         acc,
         scale,
+        evaluations: std::cell::Cell::new(0),
     };
     ctx.pair(Rect { s: a.s, t: a.t }, Rect { s: b.s, t: b.t }, 0, out);
+    ctx.evaluations.get()
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -147,6 +151,7 @@ struct Ctx<'a> {
     squared: bool,
     acc: Accuracy,
     scale: f64,
+    evaluations: std::cell::Cell<u64>,
 }
 
 fn corners(q: &Parallelogram, r: Rect) -> [V3; 4] {
@@ -159,6 +164,7 @@ fn diameter(c: &[V3; 4]) -> f64 {
 
 impl Ctx<'_> {
     fn kernel(&self, x: V3, y: V3) -> f64 {
+        self.evaluations.set(self.evaluations.get() + 1);
         let v = crate::kernel::three_d(x, self.qa.n, y, self.qb.n);
         if self.squared {
             v * v
@@ -332,6 +338,7 @@ impl Ctx<'_> {
             return self.inner(x, rb, 0, None, out);
         }
         let cb = corners(self.qb, rb);
+        self.evaluations.set(self.evaluations.get() + 1);
         let f = point_polygon(x, self.qa.n, &cb) / self.qb.area;
         let kk = self.k * self.k;
         let (s, t) = self.qb.params(x);

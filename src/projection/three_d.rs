@@ -123,7 +123,7 @@ pub fn build(
     progress: &dyn Progress,
 ) -> Result<System, Cancelled> {
     let geo = Geometry::new(quads);
-    let (matrix, _rays) = matrix(&geo, disc, accuracy(disc.quadrature), progress)?;
+    let (matrix, _rays, evaluations) = matrix(&geo, disc, accuracy(disc.quadrature), progress)?;
     let k = disc.order + 1;
     let layout = Layout::Square {
         cells: disc.cells,
@@ -141,7 +141,7 @@ pub fn build(
         reflectance: quads.iter().map(|q| q.material.reflectance).collect(),
         measure: geo.quads.iter().map(|q| q.area).collect(),
         touching: geo.touching(),
-        kernel_evaluations: None,
+        kernel_evaluations: Some(evaluations),
     })
 }
 
@@ -193,13 +193,14 @@ pub fn piece_emission(q: &Quad, area: f64, piece: Piece, k: usize, out: &mut [[f
     }
 }
 
-/// The ρ-free Galerkin matrix, rows of cells in parallel; also the visibility rays cast.
+/// The ρ-free Galerkin matrix, rows of cells in parallel; also the visibility rays cast and
+/// the kernel evaluations.
 pub fn matrix(
     geo: &Geometry,
     disc: Discretization,
     acc: Accuracy,
     progress: &dyn Progress,
-) -> Result<(Dense, u64), Cancelled> {
+) -> Result<(Dense, u64, u64), Cancelled> {
     let k = disc.order + 1;
     let kk = k * k;
     let n = disc.cells;
@@ -209,7 +210,7 @@ pub fn matrix(
     let done = AtomicUsize::new(0);
     let blocks = geo.len() * n * n;
     progress.report(Phase::Projection, 0.0);
-    let rays: Vec<u64> = m
+    let counts: Vec<(u64, u64)> = m
         .data
         .par_chunks_mut(kk * size)
         .enumerate()
@@ -222,7 +223,7 @@ pub fn matrix(
                 t: cell(a / n, n),
             };
             let mut block = vec![0.0; kk * kk];
-            let mut rays = 0u64;
+            let (mut rays, mut evaluations) = (0u64, 0u64);
             for j in 0..geo.len() {
                 if i == j || !geo.facing(i, j) {
                     continue;
@@ -239,7 +240,7 @@ pub fn matrix(
                         continue;
                     }
                     block.fill(0.0);
-                    transfer::block(
+                    evaluations += transfer::block(
                         &geo.quads,
                         pa,
                         pb,
@@ -260,10 +261,14 @@ pub fn matrix(
             if d % 16 == 0 || d == blocks {
                 progress.report(Phase::Projection, d as f64 / blocks as f64);
             }
-            Ok::<u64, Cancelled>(rays)
+            Ok::<(u64, u64), Cancelled>((rays, evaluations))
         })
         .collect::<Result<_, _>>()?;
-    Ok((m, rays.iter().sum()))
+    Ok((
+        m,
+        counts.iter().map(|c| c.0).sum(),
+        counts.iter().map(|c| c.1).sum(),
+    ))
 }
 
 /// ∫_i ∫_j K² V dy dx for every ordered pair of surfaces (row-major `S × S`) on `cells × cells`

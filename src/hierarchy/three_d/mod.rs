@@ -45,6 +45,8 @@ pub struct Hierarchy<'g> {
     /// Largest channel of ρ per surface.
     pub rho: Vec<f64>,
     pub accuracy: Accuracy,
+    /// Kernel evaluations spent on link blocks so far.
+    pub evaluations: std::sync::atomic::AtomicU64,
     pub elements: Vec<Element>,
     pub links: Vec<Link>,
     pub rays: u64,
@@ -99,6 +101,7 @@ impl<'g> Hierarchy<'g> {
                 .map(|q| q.material.reflectance.iter().copied().fold(0.0, f64::max))
                 .collect(),
             accuracy: Accuracy::coarse(order + 2),
+            evaluations: std::sync::atomic::AtomicU64::new(0),
             elements,
             links: Vec::new(),
             rays: 0,
@@ -430,7 +433,7 @@ pub fn solve(
         hierarchy: Some(h.stats()),
         timings,
         kept_squares,
-        kernel_evaluations: None,
+        kernel_evaluations: Some(h.evaluations.into_inner()),
     })
 }
 

@@ -237,7 +237,7 @@ impl Hierarchy<'_> {
                     self.elements[recv as usize].piece,
                     self.elements[src as usize].piece,
                 );
-                transfer::block(
+                let evaluations = transfer::block(
                     &self.geo.quads,
                     a,
                     b,
@@ -245,6 +245,8 @@ impl Hierarchy<'_> {
                     self.accuracy,
                     &mut block,
                 );
+                self.evaluations
+                    .fetch_add(evaluations, std::sync::atomic::Ordering::Relaxed);
                 block.iter_mut().for_each(|v| *v *= visibility);
                 Ok(Link {
                     recv,
