@@ -45,6 +45,9 @@ pub struct Hierarchy<'g> {
     /// Largest channel of ρ per surface.
     pub rho: Vec<f64>,
     pub accuracy: Accuracy,
+    /// Pairs accepted without a link because none of their rays got through, with their
+    /// oracle factor: BF refinement looks at them again as the sources brighten.
+    pub hidden: Vec<(u32, u32, f64)>,
     /// Kernel evaluations spent on link blocks so far.
     pub evaluations: std::sync::atomic::AtomicU64,
     pub elements: Vec<Element>,
@@ -102,6 +105,7 @@ impl<'g> Hierarchy<'g> {
                 .collect(),
             accuracy: Accuracy::coarse(order + 2),
             evaluations: std::sync::atomic::AtomicU64::new(0),
+            hidden: Vec::new(),
             elements,
             links: Vec::new(),
             rays: 0,
@@ -143,10 +147,23 @@ impl<'g> Hierarchy<'g> {
                 keep.push(l);
             }
         }
+        let hidden = std::mem::take(&mut self.hidden);
+        let mut reopened = 0;
+        for (r, s, geom) in hidden {
+            let e = &self.elements[r as usize];
+            let err = self.rho[e.piece.surface] * self.elements[s as usize].brightness() * geom;
+            let can = e.level < self.max_level || self.elements[s as usize].level < self.max_level;
+            if can && err > self.threshold {
+                again.push((r, s));
+                reopened += 1;
+            } else {
+                self.hidden.push((r, s, geom));
+            }
+        }
         let mut pending = Vec::new();
         self.refine_all(again, &mut pending, progress)?;
         // a pair may come back unrefined (its estimate changed): keep its block
-        let mut refined = blocks.len();
+        let mut refined = blocks.len() + reopened;
         pending.retain(|p| match blocks.remove(&(p.0, p.1)) {
             Some(l) => {
                 refined -= 1;

@@ -32,8 +32,9 @@ enum Verdict {
     Split,
     /// Accept as a link with this geometric factor and visible fraction.
     Link(f64, f64),
-    /// Accept, but no ray got through: no link.
-    Hidden,
+    /// Accept, but no ray got through: no link, unless the source brightens enough to
+    /// refine the pair (the factor is kept for that).
+    Hidden(f64),
 }
 
 /// An interaction from `src` to `recv`.
@@ -165,9 +166,14 @@ impl Hierarchy<'_> {
         );
         let seed = pair_seed(self.identity(r), self.identity(s));
         let mut rays = 0;
-        let v = self
-            .geo
-            .visibility(pr, ps, seed, VISIBILITY_GRID, &mut rays);
+        // a link between big pieces carries much of the light, and its visible fraction
+        // is an average over a large, varied set of rays: more rays for the top levels
+        // (there are few such pairs, so they cost little)
+        let top = self.elements[r as usize]
+            .level
+            .min(self.elements[s as usize].level);
+        let grid = VISIBILITY_GRID << 2u32.saturating_sub(top);
+        let v = self.geo.visibility(pr, ps, seed, grid, &mut rays);
         // partly visible, or hidden as far as the few sampled rays can tell (a big pair's
         // light may pass through a gap none of them found): no smoothness credit
         let geom = if v < 1.0 { f } else { f * smooth };
@@ -177,7 +183,7 @@ impl Hierarchy<'_> {
         if v > 0.0 {
             (Verdict::Link(geom, v), rays)
         } else {
-            (Verdict::Hidden, rays)
+            (Verdict::Hidden(geom), rays)
         }
     }
 
@@ -213,7 +219,7 @@ impl Hierarchy<'_> {
                         }
                     }
                     Verdict::Link(geom, v) => out.push((r, s, geom, v)),
-                    Verdict::Hidden => {}
+                    Verdict::Hidden(geom) => self.hidden.push((r, s, geom)),
                 }
             }
             pairs = next;
