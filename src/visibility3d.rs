@@ -6,8 +6,9 @@
 //!   conservative, so pairs it clears need no rays at all.
 //! - Partially occluded pairs get a stratified estimate (Hanrahan, Salzman and Aupperle 1991,
 //!   §4.2): a jittered n × n grid of points on each piece, the target's strata shuffled, one ray
-//!   per pair of points through the [`Bvh`]. The jitter is seeded from the indices of the two
-//!   pieces, so the same document gives the same fractions.
+//!   per pair of points that face each other through the [`Bvh`], each weighted by the kernel.
+//!   The jitter is seeded from the indices of the two pieces, so the same document gives the
+//!   same fractions.
 
 use crate::bvh::Bvh;
 use crate::space::{cross, dot, norm, sub, Parallelogram, V3};
