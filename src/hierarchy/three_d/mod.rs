@@ -128,6 +128,15 @@ impl<'g> Hierarchy<'g> {
         Ok(())
     }
 
+    /// Whether an accepted pair with oracle factor `geom` now carries more than the
+    /// threshold allows (its source brightened) and can still be refined.
+    fn outgrown(&self, r: u32, s: u32, geom: f64) -> bool {
+        let (er, es) = (&self.elements[r as usize], &self.elements[s as usize]);
+        let err = self.rho[er.piece.surface] * es.brightness() * geom;
+        let can = er.level < self.max_level || es.level < self.max_level;
+        can && err > self.threshold
+    }
+
     /// Re-evaluates every link with the current B; returns how many were refined.
     pub fn rerefine(&mut self, progress: &dyn Progress) -> Result<usize, Cancelled> {
         let old = std::mem::take(&mut self.links);
@@ -135,12 +144,7 @@ impl<'g> Hierarchy<'g> {
         let mut again = Vec::new();
         let mut blocks = std::collections::HashMap::new();
         for l in old {
-            let r = &self.elements[l.recv as usize];
-            let err =
-                self.rho[r.piece.surface] * self.elements[l.src as usize].brightness() * l.geom;
-            let can =
-                r.level < self.max_level || self.elements[l.src as usize].level < self.max_level;
-            if can && err > self.threshold {
+            if self.outgrown(l.recv, l.src, l.geom) {
                 again.push((l.recv, l.src));
                 blocks.insert((l.recv, l.src), l);
             } else {
@@ -150,10 +154,7 @@ impl<'g> Hierarchy<'g> {
         let hidden = std::mem::take(&mut self.hidden);
         let mut reopened = 0;
         for (r, s, geom) in hidden {
-            let e = &self.elements[r as usize];
-            let err = self.rho[e.piece.surface] * self.elements[s as usize].brightness() * geom;
-            let can = e.level < self.max_level || self.elements[s as usize].level < self.max_level;
-            if can && err > self.threshold {
+            if self.outgrown(r, s, geom) {
                 again.push((r, s));
                 reopened += 1;
             } else {
