@@ -7,10 +7,13 @@
 //! roulette. It returns cell means on the same `grid × grid` split as the result, each with its
 //! standard error, so the comparison can tell a real difference from sampling noise.
 
+mod support;
+
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use serde_json::{json, Value};
+use support::scene_file;
 use wavrad::job;
 use wavrad::progress::Silent;
 use wavrad::scene::{parse_value, Limits};
@@ -282,11 +285,6 @@ impl Tracer {
     }
 }
 
-fn scene_file(name: &str) -> Value {
-    let path = format!("{}/scenes/{name}.json", env!("CARGO_MANIFEST_DIR"));
-    serde_json::from_str(&std::fs::read_to_string(path).expect("scene file")).expect("json")
-}
-
 /// A solution against the reference.
 struct Comparison {
     /// Per surface (not emitting): name, the largest |solver / reference − 1| over the
@@ -379,19 +377,7 @@ fn assert_within(c: &Comparison, walls: f64, faces: f64) {
 #[test]
 fn the_reference_passes_the_furnace() {
     // every face of a closed cube emits 1 and reflects 0.5: B = 2 everywhere
-    let faces = [
-        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
-        [[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]],
-        [[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1]],
-        [[1, 0, 0], [1, 0, 1], [1, 1, 1], [1, 1, 0]],
-        [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]],
-        [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]],
-    ];
-    let surfaces: Vec<Value> = faces
-        .iter()
-        .map(|c| json!({ "corners": c, "reflectance": 0.5, "emission": 1.0 }))
-        .collect();
-    let tracer = Tracer::new(&json!({ "scene": { "surfaces": surfaces } }));
+    let tracer = Tracer::new(&support::furnace_cube(1.0, 0.5));
     for surface in tracer.cells(2, 16, 1) {
         for (mean, err) in surface {
             for c in 0..3 {

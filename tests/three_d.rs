@@ -1,43 +1,15 @@
 //! 3D scenes against closed forms: the furnace cube, Howell's form factors, convergence of the
 //! Cornell box, the linear growth of the hierarchical method's links, and the camera images.
 
-use serde_json::{json, Value};
+mod support;
+
+use serde_json::json;
+use support::{furnace_cube as furnace, job, run, scene_file};
 use wavrad::job::{self, Outcome};
 use wavrad::progress::Silent;
 use wavrad::projection::{three_d, Discretization};
 use wavrad::render::camera;
-use wavrad::scene::{parse_value, Job, Limits, SceneKind};
-
-fn job(v: Value) -> Job {
-    parse_value(&v, &Limits::default()).expect("valid document")
-}
-
-fn run(v: Value) -> Outcome {
-    job::run(&job(v), &Silent).expect("solves")
-}
-
-fn scene_file(name: &str) -> Value {
-    let path = format!("{}/scenes/{name}.json", env!("CARGO_MANIFEST_DIR"));
-    serde_json::from_str(&std::fs::read_to_string(path).expect("scene file")).expect("json")
-}
-
-/// The closed unit cube seen from inside, every face emitting E and reflecting ρ.
-fn furnace(e: f64, rho: f64) -> Value {
-    let faces = [
-        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
-        [[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]],
-        [[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1]],
-        [[1, 0, 0], [1, 0, 1], [1, 1, 1], [1, 1, 0]],
-        [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]],
-        [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]],
-    ];
-    let surfaces: Vec<Value> = faces
-        .iter()
-        .enumerate()
-        .map(|(i, c)| json!({ "name": format!("f{i}"), "corners": c, "reflectance": rho, "emission": e }))
-        .collect();
-    json!({ "scene": { "kind": "3d", "surfaces": surfaces } })
-}
+use wavrad::scene::{Job, SceneKind};
 
 #[test]
 fn furnace_cube_for_every_method_and_order() {

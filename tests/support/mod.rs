@@ -19,6 +19,27 @@ pub fn scene_file(name: &str) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
+/// The closed unit cube seen from inside, every face emitting E and reflecting ρ: B = E/(1 − ρ)
+/// everywhere.
+pub fn furnace_cube(e: f64, rho: f64) -> Value {
+    let faces = [
+        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
+        [[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]],
+        [[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1]],
+        [[1, 0, 0], [1, 0, 1], [1, 1, 1], [1, 1, 0]],
+        [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]],
+        [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]],
+    ];
+    let surfaces: Vec<Value> = faces
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            serde_json::json!({ "name": format!("f{i}"), "corners": c, "reflectance": rho, "emission": e })
+        })
+        .collect();
+    serde_json::json!({ "scene": { "kind": "3d", "surfaces": surfaces } })
+}
+
 /// The document with its `solver` and `output` replaced.
 pub fn with_solver(doc: &Value, solver: Value, output: Value) -> Value {
     let mut d = doc.clone();
