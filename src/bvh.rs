@@ -1,7 +1,7 @@
 //! A bounding volume hierarchy over the parallelograms of a 3D scene, for the visibility term
 //! V(x, y) of the slides' eq. (3) and for the camera's primary rays.
 //!
-//! Built top-down by median splits along the longest axis of the centroid bounds; nodes are
+//! Built top-down by the surface area heuristic over centroid-ordered splits; nodes are
 //! axis-aligned boxes tested with the slab method (Kay and Kajiya 1986); leaves hold up to two
 //! parallelograms, intersected through their dual basis.
 
@@ -103,16 +103,11 @@ impl Bvh {
     fn build(&mut self, first: usize, count: usize) -> u32 {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
-        let mut clo = [f64::INFINITY; 3];
-        let mut chi = [f64::NEG_INFINITY; 3];
         for &i in &self.order[first..first + count] {
             let (l, h) = self.bounds(i);
             for a in 0..3 {
                 lo[a] = lo[a].min(l[a]);
                 hi[a] = hi[a].max(h[a]);
-                let c = 0.5 * (l[a] + h[a]);
-                clo[a] = clo[a].min(c);
-                chi[a] = chi[a].max(c);
             }
         }
         // pad degenerate (planar) boxes so that the slab test never divides 0 by 0 into NaN
@@ -132,17 +127,42 @@ impl Bvh {
         if count <= 2 {
             return me;
         }
-        let axis = (0..3)
-            .max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b])))
-            .unwrap_or(0);
-        let key = |i: &u32| {
-            let (l, h) = self.bounds(*i);
-            l[axis] + h[axis]
-        };
-        let mut slice: Vec<u32> = self.order[first..first + count].to_vec();
-        slice.sort_by(|a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+        // the surface area heuristic: of the splits of the centroid order along each axis,
+        // the one that minimises Σ area(child box) × surfaces in it (MacDonald and Booth
+        // 1990), which keeps each box of a room in its own node
+        let mut best: Option<(f64, Vec<u32>, usize)> = None;
+        for axis in 0..3 {
+            let key = |i: &u32| {
+                let (l, h) = self.bounds(*i);
+                l[axis] + h[axis]
+            };
+            let mut slice: Vec<u32> = self.order[first..first + count].to_vec();
+            slice.sort_by(|a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+            let areas = |it: &mut dyn Iterator<Item = &u32>| -> Vec<f64> {
+                let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+                it.map(|&i| {
+                    let (l, h) = self.bounds(i);
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(l[a]);
+                        hi[a] = hi[a].max(h[a]);
+                    }
+                    let d = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+                    d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+                })
+                .collect()
+            };
+            let left = areas(&mut slice.iter());
+            let mut right = areas(&mut slice.iter().rev());
+            right.reverse();
+            for k in 1..count {
+                let cost = left[k - 1] * k as f64 + right[k] * (count - k) as f64;
+                if best.as_ref().is_none_or(|b| cost < b.0) {
+                    best = Some((cost, slice.clone(), k));
+                }
+            }
+        }
+        let (_, slice, half) = best.expect("at least three surfaces");
         self.order[first..first + count].copy_from_slice(&slice);
-        let half = count / 2;
         let left = self.build(first, half);
         let right = self.build(first + half, count - half);
         let node = &mut self.nodes[me as usize];
