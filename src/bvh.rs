@@ -176,8 +176,13 @@ impl Bvh {
     pub fn first_hit(&self, o: V3, d: V3, t_min: f64, t_max: f64, skip: [usize; 2]) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let mut t_max = t_max;
-        self.walk(o, d, t_min, &mut t_max, skip, &mut |hit| {
-            best = Some(hit);
+        self.traverse(o, d, t_min, &mut t_max, |i, t_max| {
+            if i != skip[0] && i != skip[1] {
+                if let Some(hit) = intersect(&self.quads[i], i, o, d, t_min, *t_max) {
+                    *t_max = hit.dist;
+                    best = Some(hit);
+                }
+            }
             false
         });
         best
@@ -186,45 +191,26 @@ impl Bvh {
     /// Whether some surface other than `skip` crosses the open segment (a, b): any hit ends
     /// the walk.
     pub fn occluded(&self, a: V3, b: V3, skip: [usize; 2]) -> bool {
-        if self.nodes.is_empty() {
-            return false;
-        }
         let d = sub(b, a);
-        let (t_min, t_max) = (1e-9, 1.0 - 1e-9);
-        let inv = [1.0 / d[0], 1.0 / d[1], 1.0 / d[2]];
-        let mut stack = [0u32; 64];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let node = &self.nodes[stack[top] as usize];
-            if !slab(node, a, inv, t_min, t_max) {
-                continue;
-            }
-            if node.count == 0 {
-                stack[top] = node.first;
-                stack[top + 1] = node.right;
-                top += 2;
-                continue;
-            }
-            for &i in &self.order[node.first as usize..(node.first + node.count) as usize] {
-                let i = i as usize;
-                if i != skip[0] && i != skip[1] && crosses(&self.quads[i], a, d, t_min, t_max) {
-                    return true;
-                }
-            }
-        }
-        false
+        let (t_min, mut t_max) = (1e-9, 1.0 - 1e-9);
+        let mut hit = false;
+        self.traverse(a, d, t_min, &mut t_max, |i, t_max| {
+            hit = i != skip[0] && i != skip[1] && crosses(&self.quads[i], a, d, t_min, *t_max);
+            hit
+        });
+        hit
     }
 
-    /// Visits the nodes along the ray; `on_hit` returns whether to stop.
-    fn walk(
+    /// Visits the surfaces in the leaves whose boxes the ray o + t d meets for t in
+    /// (t_min, t_max); `leaf` may shorten t_max and returns whether to stop. Generic, so that
+    /// each query's test is inlined into the loop.
+    fn traverse(
         &self,
         o: V3,
         d: V3,
         t_min: f64,
         t_max: &mut f64,
-        skip: [usize; 2],
-        on_hit: &mut dyn FnMut(Hit) -> bool,
+        mut leaf: impl FnMut(usize, &mut f64) -> bool,
     ) {
         if self.nodes.is_empty() {
             return;
@@ -234,8 +220,8 @@ impl Bvh {
         let mut top = 1;
         while top > 0 {
             top -= 1;
-            let node = self.nodes[stack[top] as usize];
-            if !slab(&node, o, inv, t_min, *t_max) {
+            let node = &self.nodes[stack[top] as usize];
+            if !slab(node, o, inv, t_min, *t_max) {
                 continue;
             }
             if node.count == 0 {
@@ -245,15 +231,8 @@ impl Bvh {
                 continue;
             }
             for &i in &self.order[node.first as usize..(node.first + node.count) as usize] {
-                let i = i as usize;
-                if i == skip[0] || i == skip[1] {
-                    continue;
-                }
-                if let Some(hit) = intersect(&self.quads[i], i, o, d, t_min, *t_max) {
-                    *t_max = hit.dist;
-                    if on_hit(hit) {
-                        return;
-                    }
+                if leaf(i as usize, t_max) {
+                    return;
                 }
             }
         }
