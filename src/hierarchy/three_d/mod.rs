@@ -26,7 +26,7 @@ use crate::solve::Solved;
 use crate::transfer::Accuracy;
 use crate::visibility3d::Piece;
 use rayon::prelude::*;
-use refine::Link;
+use refine::{Factors, Link};
 use std::collections::BTreeMap;
 use std::time::Instant;
 use tree::{pull, push, Element, NONE};
@@ -44,10 +44,15 @@ pub struct Hierarchy<'g> {
     pub threshold: f64,
     /// Largest channel of ρ per surface.
     pub rho: Vec<f64>,
+    /// Per receiver surface: how many non-emitting surfaces face it (at least 1), the weight
+    /// w_R of the oracle for inter-reflected light ([`refine`]).
+    pub indirect: Vec<f64>,
     pub accuracy: Accuracy,
+    /// The grid on which pairs of pieces are compared for congruence: 2⁻³² of the scene.
+    pub unit: f64,
     /// Pairs accepted without a link because none of their rays got through, with their
     /// oracle factor: BF refinement looks at them again as the sources brighten.
-    pub hidden: Vec<(u32, u32, f64)>,
+    pub hidden: Vec<(u32, u32, Factors)>,
     /// Kernel evaluations spent on link blocks so far.
     pub evaluations: std::sync::atomic::AtomicU64,
     pub elements: Vec<Element>,
@@ -89,6 +94,7 @@ impl<'g> Hierarchy<'g> {
                     b: e.clone(),
                     e,
                     h: vec![[0.0; 3]; k * k],
+                    detail: 0.0,
                 }
             })
             .collect();
@@ -99,11 +105,24 @@ impl<'g> Hierarchy<'g> {
             k,
             max_level: resolution.trailing_zeros(),
             threshold: epsilon * emax,
+            indirect: (0..quads.len())
+                .map(|i| {
+                    (0..quads.len())
+                        .filter(|&j| {
+                            j != i
+                                && geo.facing(i, j)
+                                && quads[j].material.emission.iter().all(|&e| e == 0.0)
+                        })
+                        .count()
+                        .max(1) as f64
+                })
+                .collect(),
             rho: quads
                 .iter()
                 .map(|q| q.material.reflectance.iter().copied().fold(0.0, f64::max))
                 .collect(),
             accuracy: Accuracy::coarse(order + 2),
+            unit: geo.quads.iter().map(|q| q.diameter()).fold(0.0, f64::max) * (-32f64).exp2(),
             evaluations: std::sync::atomic::AtomicU64::new(0),
             hidden: Vec::new(),
             elements,
@@ -128,23 +147,50 @@ impl<'g> Hierarchy<'g> {
         Ok(())
     }
 
-    /// Whether an accepted pair with oracle factor `geom` now carries more than the
-    /// threshold allows (its source brightened) and can still be refined.
-    fn outgrown(&self, r: u32, s: u32, geom: f64) -> bool {
+    /// Whether an accepted pair now carries more than the threshold allows (its source
+    /// brightened or turned out uneven) and can still be refined.
+    fn outgrown(&self, r: u32, s: u32, x: Factors) -> bool {
         let (er, es) = (&self.elements[r as usize], &self.elements[s as usize]);
-        let err = self.rho[er.piece.surface] * es.brightness() * geom;
+        let (kernel, detail) = self.error(r, s, x);
         let can = er.level < self.max_level || es.level < self.max_level;
-        can && err > self.threshold
+        can && kernel + detail > self.threshold
+    }
+
+    /// Sets every element's `detail` from the leaves' B; returns Σ over the leaves below
+    /// `e` of their squared coefficients per channel (Parseval: the orthonormal bases make
+    /// ‖B − P_e B‖² on e that sum minus ‖b_e‖²).
+    fn measure_detail(&mut self, e: u32) -> [f64; 3] {
+        let el = &self.elements[e as usize];
+        let own = el.b.iter().fold([0.0; 3], |a, c| {
+            [a[0] + c[0] * c[0], a[1] + c[1] * c[1], a[2] + c[2] * c[2]]
+        });
+        if el.is_leaf() {
+            self.elements[e as usize].detail = 0.0;
+            return own;
+        }
+        let first = el.children;
+        let mut sum = [0.0; 3];
+        for i in 0..4 {
+            let c = self.measure_detail(first + i);
+            (0..3).for_each(|ch| sum[ch] += c[ch]);
+        }
+        let el = &mut self.elements[e as usize];
+        let worst = (0..3).map(|ch| sum[ch] - own[ch]).fold(0.0, f64::max);
+        el.detail = (worst / el.area).sqrt();
+        sum
     }
 
     /// Re-evaluates every link with the current B; returns how many were refined.
     pub fn rerefine(&mut self, progress: &dyn Progress) -> Result<usize, Cancelled> {
+        for root in 0..self.quads.len() {
+            self.measure_detail(root as u32);
+        }
         let old = std::mem::take(&mut self.links);
         let mut keep = Vec::with_capacity(old.len());
         let mut again = Vec::new();
         let mut blocks = std::collections::HashMap::new();
         for l in old {
-            if self.outgrown(l.recv, l.src, l.geom) {
+            if self.outgrown(l.recv, l.src, l.factors) {
                 again.push((l.recv, l.src));
                 blocks.insert((l.recv, l.src), l);
             } else {
@@ -153,12 +199,12 @@ impl<'g> Hierarchy<'g> {
         }
         let hidden = std::mem::take(&mut self.hidden);
         let mut reopened = 0;
-        for (r, s, geom) in hidden {
-            if self.outgrown(r, s, geom) {
+        for (r, s, x) in hidden {
+            if self.outgrown(r, s, x) {
                 again.push((r, s));
                 reopened += 1;
             } else {
-                self.hidden.push((r, s, geom));
+                self.hidden.push((r, s, x));
             }
         }
         let mut pending = Vec::new();

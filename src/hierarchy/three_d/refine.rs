@@ -3,18 +3,24 @@
 //!
 //! A candidate interaction from source S to receiver R is estimated, before any quadrature,
 //! as the irradiance it carries times the part of it a polynomial of order m on the pair
-//! cannot represent:
+//! cannot represent, plus what reading the source's B as one polynomial loses:
 //!
 //! ```text
-//! err = ρ_R · B̄_S · F̂(R ← S) · (d / (d + dist))^(m+1)
+//! err = w_R · ρ_R · F̂(R ← S) · (B̄_S · (d / (d + dist))^(m+1) + D_S)
 //! ```
 //!
 //! with F̂ the largest point-to-piece form factor from a few points of R to S (in closed
-//! form), d the larger diameter and dist the distance of the two pieces. A partly
-//! visible pair loses the smoothness factor (a shadow edge is not a polynomial). When err is
-//! above ε times the brightest emission, the larger element is split (down to the finest level
-//! allowed) and its children are linked instead; otherwise the pair becomes a link whose k² × k²
-//! block is integrated by [`crate::transfer`] and scaled by the visible fraction.
+//! form), d the larger diameter and dist the distance of the two pieces, and D_S the root mean
+//! square of B on S minus its polynomial there (the wavelet detail below S). A partly visible
+//! pair loses the smoothness factor (a shadow edge is not a polynomial). w_R = 1 when S emits;
+//! for inter-reflected light it is the number of non-emitting surfaces facing R's surface: the
+//! tolerance is shared among them, because R gathers from all of them and their errors add up
+//! with one sign (a coarse link averages a source's bright spot over a kernel that peaks at
+//! it, so it carries too little: with w_R = 1 every surface of the Cornell box came out 1–3 %
+//! low). When err is above ε times the brightest emission, an element is split (down to the
+//! finest level allowed: the source when D_S is most of the error, else the larger) and its
+//! children are linked instead; otherwise the pair becomes a link whose k² × k² block is
+//! integrated by [`crate::transfer`] and scaled by the visible fraction.
 
 use super::tree::{push, Element, NONE};
 use super::Hierarchy;
@@ -25,16 +31,26 @@ use crate::transfer::{self, Integrand};
 use crate::visibility3d::{pair_seed, Piece};
 use rayon::prelude::*;
 
+/// The geometric part of the oracle's estimate for one pair.
+#[derive(Debug, Clone, Copy)]
+pub struct Factors {
+    /// F̂: the largest point-to-piece form factor from the receiver to the source.
+    pub f: f64,
+    /// (d / (d + dist))^(m+1), or 1 when the pair is partly visible.
+    pub smooth: f64,
+}
+
 /// What the oracle makes of a pair.
 #[derive(Debug, Clone, Copy)]
 enum Verdict {
-    /// Refine: split the larger element and judge its children against the other.
-    Split,
-    /// Accept as a link with this geometric factor and visible fraction.
-    Link(f64, f64),
+    /// Refine: split an element and judge its children against the other; the source
+    /// first when its own variation is most of the error.
+    Split { source: bool },
+    /// Accept as a link with these factors and visible fraction.
+    Link(Factors, f64),
     /// Accept, but no ray got through: no link, unless the source brightens enough to
-    /// refine the pair (the factor is kept for that).
-    Hidden(f64),
+    /// refine the pair (the factors are kept for that).
+    Hidden(Factors),
 }
 
 /// An interaction from `src` to `recv`.
@@ -42,8 +58,8 @@ enum Verdict {
 pub struct Link {
     pub recv: u32,
     pub src: u32,
-    /// The oracle's geometric factor: err = ρ_R B̄_S · geom.
-    pub geom: f64,
+    /// The oracle's geometric factors, to judge the link again as B changes.
+    pub factors: Factors,
     /// Visible fraction.
     pub visibility: f64,
     /// k² × k², row = receiver coefficient.
@@ -138,6 +154,7 @@ impl Hierarchy<'_> {
                     e: e_coeffs,
                     b,
                     h: vec![[0.0; 3]; kk],
+                    detail: 0.0,
                 });
             }
         }
@@ -149,16 +166,38 @@ impl Hierarchy<'_> {
         self.elements[e as usize].level < self.max_level
     }
 
+    /// The oracle's estimate of the error of a link from `s` to `r`, in two parts: what the
+    /// kernel's variation over the pair costs (B̄_S carried by a transfer that a polynomial
+    /// of order m on the pair misses), and what the source's own variation below its level
+    /// costs (a link reads the source's B as one polynomial: a bright spot in a dim surface
+    /// is spread over it, and the kernel's peak, which sits where light is, loses it).
+    pub(super) fn error(&self, r: u32, s: u32, x: Factors) -> (f64, f64) {
+        let rho = self.rho[self.elements[r as usize].piece.surface];
+        let es = &self.elements[s as usize];
+        let w = if es.peak > 0.0 {
+            1.0
+        } else {
+            self.indirect[self.elements[r as usize].piece.surface]
+        };
+        (
+            w * rho * es.brightness() * x.f * x.smooth,
+            w * rho * es.detail * x.f,
+        )
+    }
+
     /// The oracle's verdict on one pair, with the element tree as it is: read-only, so that
     /// a whole frontier of pairs is judged in parallel (the rays are most of the work).
-    fn judge(&self, r: u32, s: u32) -> (Verdict, u64) {
-        let rho = self.rho[self.elements[r as usize].piece.surface];
-        let b = self.elements[s as usize].brightness();
-        let (f, smooth) = self.estimate(r, s);
+    fn judge(&self, r: u32, s: u32, (f, smooth): (f64, f64)) -> (Verdict, u64) {
         let thr = self.threshold;
         let can = self.splittable(r) || self.splittable(s);
-        if can && rho * b * f * smooth > thr {
-            return (Verdict::Split, 0);
+        let split = |x: Factors| {
+            let (kernel, detail) = self.error(r, s, x);
+            (can && kernel + detail > thr).then_some(Verdict::Split {
+                source: detail > kernel,
+            })
+        };
+        if let Some(v) = split(Factors { f, smooth }) {
+            return (v, 0);
         }
         let (pr, ps) = (
             self.elements[r as usize].piece,
@@ -176,14 +215,17 @@ impl Hierarchy<'_> {
         let v = self.geo.visibility(pr, ps, seed, grid, &mut rays);
         // partly visible, or hidden as far as the few sampled rays can tell (a big pair's
         // light may pass through a gap none of them found): no smoothness credit
-        let geom = if v < 1.0 { f } else { f * smooth };
-        if can && rho * b * geom > thr {
-            return (Verdict::Split, rays);
+        let x = Factors {
+            f,
+            smooth: if v < 1.0 { 1.0 } else { smooth },
+        };
+        if let Some(v) = split(x) {
+            return (v, rays);
         }
         if v > 0.0 {
-            (Verdict::Link(geom, v), rays)
+            (Verdict::Link(x, v), rays)
         } else {
-            (Verdict::Hidden(geom), rays)
+            (Verdict::Hidden(x), rays)
         }
     }
 
@@ -194,22 +236,48 @@ impl Hierarchy<'_> {
     pub(super) fn refine_all(
         &mut self,
         mut pairs: Vec<(u32, u32)>,
-        out: &mut Vec<(u32, u32, f64, f64)>,
+        out: &mut Vec<(u32, u32, Factors, f64)>,
         progress: &dyn Progress,
     ) -> Result<(), Cancelled> {
         while !pairs.is_empty() {
             progress.check()?;
-            let verdicts: Vec<(Verdict, u64)> =
-                pairs.par_iter().map(|&(r, s)| self.judge(r, s)).collect();
+            // the estimate depends on the pair's shape only: once per shape
+            let piece = |e: u32| self.elements[e as usize].piece;
+            let shapes: Vec<transfer::Shape> = pairs
+                .par_iter()
+                .map(|&(r, s)| transfer::shape(&self.geo.quads, piece(r), piece(s), self.unit))
+                .collect();
+            let mut index = std::collections::HashMap::new();
+            let mut unique = Vec::new();
+            let slots: Vec<usize> = pairs
+                .iter()
+                .zip(&shapes)
+                .map(|(&pair, shape)| {
+                    *index.entry(shape).or_insert_with(|| {
+                        unique.push(pair);
+                        unique.len() - 1
+                    })
+                })
+                .collect();
+            let estimates: Vec<(f64, f64)> = unique
+                .par_iter()
+                .map(|&(r, s)| self.estimate(r, s))
+                .collect();
+            let verdicts: Vec<(Verdict, u64)> = pairs
+                .par_iter()
+                .zip(slots.par_iter())
+                .map(|(&(r, s), &slot)| self.judge(r, s, estimates[slot]))
+                .collect();
             let mut next = Vec::new();
             for (&(r, s), (verdict, rays)) in pairs.iter().zip(verdicts) {
                 self.rays += rays;
                 match verdict {
-                    Verdict::Split => {
+                    Verdict::Split { source } => {
                         let split_r = self.splittable(r)
                             && (!self.splittable(s)
-                                || self.elements[r as usize].area
-                                    >= self.elements[s as usize].area);
+                                || (!source
+                                    && self.elements[r as usize].area
+                                        >= self.elements[s as usize].area));
                         if split_r {
                             let c = self.split(r);
                             next.extend((0..4).map(|i| (c + i, s)));
@@ -218,8 +286,8 @@ impl Hierarchy<'_> {
                             next.extend((0..4).map(|i| (r, c + i)));
                         }
                     }
-                    Verdict::Link(geom, v) => out.push((r, s, geom, v)),
-                    Verdict::Hidden(geom) => self.hidden.push((r, s, geom)),
+                    Verdict::Link(x, v) => out.push((r, s, x, v)),
+                    Verdict::Hidden(x) => self.hidden.push((r, s, x)),
                 }
             }
             pairs = next;
@@ -227,42 +295,86 @@ impl Hierarchy<'_> {
         Ok(())
     }
 
-    /// Integrates the blocks of accepted pairs, in parallel.
+    /// Integrates the blocks of accepted pairs, in parallel: one per shape of pair
+    /// ([`transfer::shape`]), with T_ba = T_abᵀ (the kernel is symmetric and the bases
+    /// orthonormal) so that a pair and its reverse share one too.
     pub(super) fn make_links(
         &self,
-        pending: &[(u32, u32, f64, f64)],
+        pending: &[(u32, u32, Factors, f64)],
         progress: &dyn Progress,
     ) -> Result<Vec<Link>, Cancelled> {
         let kk = self.k * self.k;
-        pending
+        let piece = |e: u32| self.elements[e as usize].piece;
+        // (shape, whether the pair is the reverse of the shape's representative)
+        let shapes: Vec<(transfer::Shape, bool)> = pending
             .par_iter()
-            .map(|&(recv, src, geom, visibility)| {
+            .map(|&(r, s, _, _)| {
+                let ab = transfer::shape(&self.geo.quads, piece(r), piece(s), self.unit);
+                let ba = transfer::shape(&self.geo.quads, piece(s), piece(r), self.unit);
+                if ba < ab {
+                    (ba, true)
+                } else {
+                    (ab, false)
+                }
+            })
+            .collect();
+        let mut index = std::collections::HashMap::new();
+        let mut unique = Vec::new();
+        let slots: Vec<usize> = pending
+            .iter()
+            .zip(&shapes)
+            .map(|(&(r, s, _, _), &(shape, reverse))| {
+                *index.entry(shape).or_insert_with(|| {
+                    unique.push(if reverse { (s, r) } else { (r, s) });
+                    unique.len() - 1
+                })
+            })
+            .collect();
+        let blocks: Vec<Vec<f64>> = unique
+            .par_iter()
+            .map(|&(a, b)| {
                 progress.check()?;
                 let mut block = vec![0.0; kk * kk];
-                let (a, b) = (
-                    self.elements[recv as usize].piece,
-                    self.elements[src as usize].piece,
-                );
                 let evaluations = transfer::block(
                     &self.geo.quads,
-                    a,
-                    b,
+                    piece(a),
+                    piece(b),
                     Integrand::Galerkin { k: self.k },
                     self.accuracy,
                     &mut block,
                 );
                 self.evaluations
                     .fetch_add(evaluations, std::sync::atomic::Ordering::Relaxed);
-                block.iter_mut().for_each(|v| *v *= visibility);
-                Ok(Link {
-                    recv,
-                    src,
-                    geom,
-                    visibility,
-                    block,
-                })
+                Ok(block)
             })
-            .collect()
+            .collect::<Result<_, Cancelled>>()?;
+        Ok(pending
+            .iter()
+            .zip(shapes.iter().zip(slots))
+            .map(
+                |(&(recv, src, factors, visibility), (&(_, reverse), slot))| {
+                    let block = &blocks[slot];
+                    let block = (0..kk * kk)
+                        .map(|i| {
+                            let (row, col) = (i / kk, i % kk);
+                            let v = if reverse {
+                                block[col * kk + row]
+                            } else {
+                                block[i]
+                            };
+                            v * visibility
+                        })
+                        .collect();
+                    Link {
+                        recv,
+                        src,
+                        factors,
+                        visibility,
+                        block,
+                    }
+                },
+            )
+            .collect())
     }
 }
 

@@ -29,6 +29,10 @@ pub struct Element {
     pub peak: f64,
     pub b: Vec<Rgb>,
     pub h: Vec<Rgb>,
+    /// The root mean square of B minus its polynomial on this element over the element
+    /// (largest channel), from the leaves below: what a link that uses this element as a
+    /// source leaves out.
+    pub detail: f64,
 }
 
 impl Element {
