@@ -34,6 +34,9 @@ use tree::{pull, push, Element, NONE};
 /// Refinement passes after the first solve, at most.
 const MAX_PASSES: usize = 6;
 
+/// The residual to which the solves between refinement passes go.
+const ROUGH: f64 = 1e-3;
+
 /// The elements, links and settings of one hierarchical solve.
 pub struct Hierarchy<'g> {
     pub geo: &'g Geometry,
@@ -415,7 +418,16 @@ pub fn solve(
     let mut iterations = 0;
     let mut converged = false;
     let mut residual = f64::INFINITY;
+    // the solves before the last only steer the refinement, for which B to ROUGH will do;
+    // the last one (no link changed, or the passes ran out) goes to the document's tolerance
+    let mut last = false;
     for pass in 0..=MAX_PASSES {
+        last |= pass == MAX_PASSES;
+        let tolerance = if last {
+            job.solver.tolerance
+        } else {
+            job.solver.tolerance.max(ROUGH)
+        };
         let t = Instant::now();
         converged = false;
         while iterations < job.solver.max_iterations {
@@ -427,13 +439,13 @@ pub fn solve(
                 Phase::Solve,
                 (iterations as f64 / job.solver.max_iterations as f64).min(1.0),
             );
-            if residual < job.solver.tolerance {
-                converged = true;
+            if residual < tolerance {
+                converged = residual < job.solver.tolerance;
                 break;
             }
         }
         solve_ms += ms(t);
-        if pass == MAX_PASSES {
+        if last {
             break;
         }
         let t = Instant::now();
@@ -441,9 +453,7 @@ pub fn solve(
         progress.report(Phase::Refinement, (pass + 1) as f64 / MAX_PASSES as f64);
         let refined = h.rerefine(progress)?;
         refine_ms += ms(t);
-        if refined == 0 {
-            break;
-        }
+        last = refined == 0;
     }
     timings.insert("refinement".into(), refine_ms);
     timings.insert("solve".into(), solve_ms);
