@@ -247,18 +247,7 @@ impl Hierarchy<'_> {
                 .par_iter()
                 .map(|&(r, s)| transfer::shape(&self.geo.quads, piece(r), piece(s), self.unit))
                 .collect();
-            let mut index = std::collections::HashMap::new();
-            let mut unique = Vec::new();
-            let slots: Vec<usize> = pairs
-                .iter()
-                .zip(&shapes)
-                .map(|(&pair, shape)| {
-                    *index.entry(shape).or_insert_with(|| {
-                        unique.push(pair);
-                        unique.len() - 1
-                    })
-                })
-                .collect();
+            let (unique, slots) = first_of_each(shapes.into_iter().zip(pairs.iter().copied()));
             let estimates: Vec<(f64, f64)> = unique
                 .par_iter()
                 .map(|&(r, s)| self.estimate(r, s))
@@ -318,18 +307,9 @@ impl Hierarchy<'_> {
                 }
             })
             .collect();
-        let mut index = std::collections::HashMap::new();
-        let mut unique = Vec::new();
-        let slots: Vec<usize> = pending
-            .iter()
-            .zip(&shapes)
-            .map(|(&(r, s, _, _), &(shape, reverse))| {
-                *index.entry(shape).or_insert_with(|| {
-                    unique.push(if reverse { (s, r) } else { (r, s) });
-                    unique.len() - 1
-                })
-            })
-            .collect();
+        let (unique, slots) = first_of_each(pending.iter().zip(&shapes).map(
+            |(&(r, s, _, _), &(shape, reverse))| (shape, if reverse { (s, r) } else { (r, s) }),
+        ));
         let blocks: Vec<Vec<f64>> = unique
             .par_iter()
             .map(|&(a, b)| {
@@ -376,6 +356,23 @@ impl Hierarchy<'_> {
             )
             .collect())
     }
+}
+
+/// The first item of each key, in order, and for every item the index of its key's first.
+fn first_of_each<K: std::hash::Hash + Eq, T>(
+    items: impl Iterator<Item = (K, T)>,
+) -> (Vec<T>, Vec<usize>) {
+    let mut index = std::collections::HashMap::new();
+    let mut firsts = Vec::new();
+    let slots = items
+        .map(|(key, item)| {
+            *index.entry(key).or_insert_with(|| {
+                firsts.push(item);
+                firsts.len() - 1
+            })
+        })
+        .collect();
+    (firsts, slots)
 }
 
 /// The largest emission channel of `quad` if `piece` overlaps its emission region, else 0.
