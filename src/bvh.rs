@@ -320,19 +320,23 @@ mod tests {
         ])
     }
 
+    /// Deterministic uniform numbers in [0, 1) from a 64-bit linear congruential generator.
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     #[test]
     fn nearest_hit_and_occlusion_agree_with_brute_force() {
         let quads: Vec<_> = (0..9)
             .map(|i| square(i as f64 * 0.5, (i % 3) as f64 * 0.7))
             .collect();
         let bvh = Bvh::new(&quads);
-        let mut seed = 12345u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = uniform(12345);
         for _ in 0..2000 {
             let o = [rnd() * 3.0 - 0.5, rnd() * 2.0 - 0.5, rnd() * 5.0 - 0.5];
             let e = [rnd() * 3.0 - 0.5, rnd() * 2.0 - 0.5, rnd() * 5.0 - 0.5];
@@ -368,13 +372,7 @@ mod tests {
         let occ = Bvh::occluders(&quads);
         assert_eq!(occ.len(), 1);
         // the same answers as the full tree for segments between points of the surfaces
-        let mut seed = 99u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = uniform(99);
         let mut blocked = 0;
         for _ in 0..4000 {
             let (i, k) = ((rnd() * 7.0) as usize, (rnd() * 7.0) as usize);
