@@ -1,22 +1,57 @@
 //! A bounding volume hierarchy over the parallelograms of a 3D scene, for the visibility term
 //! V(x, y) of the slides' eq. (3) and for the camera's primary rays.
 //!
-//! Built top-down by the surface area heuristic over centroid-ordered splits; nodes are
-//! axis-aligned boxes tested with the slab method (Kay and Kajiya 1986); leaves hold up to two
-//! parallelograms, intersected through their dual basis.
+//! - Built top-down by the surface area heuristic over centroid-ordered splits (MacDonald and
+//!   Booth 1990) into a binary tree whose leaves hold up to eight surfaces, where testing them
+//!   all costs less than another box.
+//! - Then collapsed into a 4-wide tree (Wald, Benthin and Boulos 2008; Dammertz et al. 2008):
+//!   each node holds the boxes of up to four children side by side, and each leaf one or two
+//!   packets of four parallelograms side by side, so that a ray meets four boxes with the slab
+//!   method (Kay and Kajiya 1986), or four parallelograms through their dual bases, in one
+//!   pass of vector arithmetic.
+//!
+//! Written here rather than taken from a crate: the crates build over `f32` triangles, where
+//! the form factors of surfaces that share an edge need `f64` parallelograms, and visibility
+//! rays need only "any hit" with two surfaces skipped. The lanes are AVX2 registers where the
+//! processor has them (`pulp` checks at run time), two SSE2 halves (`wide`) elsewhere.
+//! Measured in `benches/three_d.rs` (rays per second, `benches/README.md`).
 
-use crate::space::{dot, sub, Parallelogram, V3};
+use crate::space::{sub, Parallelogram, V3};
+use smallvec::SmallVec;
 
+/// Children per node and surfaces per leaf.
+const W: usize = 4;
+/// A child reference with this bit set is a leaf: `packets` consecutive entries of `leaves`
+/// from `first`, encoded as `LEAF | first << 1 | (packets − 1)`.
+const LEAF: u32 = 1 << 31;
+/// Packets of four surfaces a leaf may hold.
+const PACKETS: usize = 2;
+
+/// Up to four children: their boxes by axis and lane, and references. Lanes past `count` are
+/// never read.
 #[derive(Debug, Clone, Copy)]
 struct Node {
-    lo: V3,
-    hi: V3,
-    /// Leaf: first index into `order` and count; inner: left child index (right = left + 1 is
-    /// not assumed: `right` holds it) and count 0.
-    first: u32,
+    lo: [Lanes4; 3],
+    hi: [Lanes4; 3],
+    child: [u32; W],
     count: u32,
-    right: u32,
 }
+
+/// Up to four parallelograms by component and lane. Empty lanes have a zero normal, so that a
+/// ray never crosses them, and the surface index `u32::MAX`.
+#[derive(Debug, Clone, Copy)]
+struct Leaf {
+    p0: [Lanes4; 3],
+    n: [Lanes4; 3],
+    u: [Lanes4; 3],
+    v: [Lanes4; 3],
+    id: [u32; W],
+}
+
+/// Four values side by side, aligned for one vector load.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(32))]
+struct Lanes4([f64; W]);
 
 /// The closest hit of a ray.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -30,21 +65,36 @@ pub struct Hit {
 #[derive(Debug, Clone)]
 pub struct Bvh {
     quads: Vec<Parallelogram>,
+    /// Surfaces in the tree.
+    members: usize,
     nodes: Vec<Node>,
-    order: Vec<u32>,
+    leaves: Vec<Leaf>,
+    /// The reference to start from: a node, a leaf (`LEAF` set), or none when empty.
+    root: Option<u32>,
+    /// AVX2 and FMA, when the processor has them.
+    #[cfg(target_arch = "x86_64")]
+    avx2: Option<pulp::x86::V3>,
+}
+
+/// The binary tree of the build, before it is collapsed.
+struct Binary {
+    lo: V3,
+    hi: V3,
+    /// Surfaces of a leaf; empty for an inner node.
+    surfaces: Vec<u32>,
+    kids: Option<Box<[Binary; 2]>>,
+}
+
+impl Binary {
+    fn area(&self) -> f64 {
+        let d = sub(self.hi, self.lo);
+        d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+    }
 }
 
 impl Bvh {
     pub fn new(quads: &[Parallelogram]) -> Bvh {
-        let mut bvh = Bvh {
-            quads: quads.to_vec(),
-            nodes: Vec::new(),
-            order: (0..quads.len() as u32).collect(),
-        };
-        if !quads.is_empty() {
-            bvh.build(0, quads.len());
-        }
-        bvh
+        Bvh::over(quads, (0..quads.len() as u32).collect())
     }
 
     /// A hierarchy for occlusion queries: it keeps every surface's index but leaves out of the
@@ -61,26 +111,36 @@ impl Bvh {
                     .all(|&c| q.side(c) >= -tol)
             })
         };
+        let members = (0..quads.len() as u32)
+            .filter(|&i| !bounding(&quads[i as usize]))
+            .collect();
+        Bvh::over(quads, members)
+    }
+
+    fn over(quads: &[Parallelogram], members: Vec<u32>) -> Bvh {
         let mut bvh = Bvh {
             quads: quads.to_vec(),
+            members: members.len(),
             nodes: Vec::new(),
-            order: (0..quads.len() as u32)
-                .filter(|&i| !bounding(&quads[i as usize]))
-                .collect(),
+            leaves: Vec::new(),
+            root: None,
+            #[cfg(target_arch = "x86_64")]
+            avx2: pulp::x86::V3::try_new(),
         };
-        if !bvh.order.is_empty() {
-            bvh.build(0, bvh.order.len());
+        if !members.is_empty() {
+            let tree = bvh.split(members);
+            bvh.root = Some(bvh.collapse(&tree));
         }
         bvh
     }
 
     /// How many surfaces the tree holds.
     pub fn len(&self) -> usize {
-        self.order.len()
+        self.members
     }
 
     pub fn is_empty(&self) -> bool {
-        self.order.is_empty()
+        self.members == 0
     }
 
     pub fn quads(&self) -> &[Parallelogram] {
@@ -100,10 +160,11 @@ impl Bvh {
         (lo, hi)
     }
 
-    fn build(&mut self, first: usize, count: usize) -> u32 {
+    /// The binary SAH tree over `surfaces`.
+    fn split(&self, mut surfaces: Vec<u32>) -> Binary {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
-        for &i in &self.order[first..first + count] {
+        for &i in &surfaces {
             let (l, h) = self.bounds(i);
             for a in 0..3 {
                 lo[a] = lo[a].min(l[a]);
@@ -116,27 +177,29 @@ impl Bvh {
             lo[a] -= pad;
             hi[a] += pad;
         }
-        let me = self.nodes.len() as u32;
-        self.nodes.push(Node {
+        let count = surfaces.len();
+        let leaf = Binary {
             lo,
             hi,
-            first: first as u32,
-            count: count as u32,
-            right: 0,
-        });
-        if count <= 2 {
-            return me;
+            surfaces: Vec::new(),
+            kids: None,
+        };
+        if count <= W {
+            return Binary { surfaces, ..leaf };
         }
-        // the surface area heuristic: of the splits of the centroid order along each axis,
-        // the one that minimises Σ area(child box) × surfaces in it (MacDonald and Booth
-        // 1990), which keeps each box of a room in its own node
+        // of the splits of the centroid order along each axis, the one of least expected cost
+        // by the surface area heuristic (MacDonald and Booth 1990): one box test plus, for
+        // each side, the chance that a ray through this box meets that side's box times the
+        // packets there. That keeps each box of a room in its own node.
+        let packets = |n: usize| n.div_ceil(W) as f64;
+        let total = leaf.area();
         let mut best: Option<(f64, Vec<u32>, usize)> = None;
         for axis in 0..3 {
             let key = |i: &u32| {
                 let (l, h) = self.bounds(*i);
                 l[axis] + h[axis]
             };
-            let mut slice: Vec<u32> = self.order[first..first + count].to_vec();
+            let mut slice = surfaces.clone();
             slice.sort_by(|a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
             let areas = |it: &mut dyn Iterator<Item = &u32>| -> Vec<f64> {
                 let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
@@ -155,156 +218,429 @@ impl Bvh {
             let mut right = areas(&mut slice.iter().rev());
             right.reverse();
             for k in 1..count {
-                let cost = left[k - 1] * k as f64 + right[k] * (count - k) as f64;
+                let cost = 1.0 + (left[k - 1] * packets(k) + right[k] * packets(count - k)) / total;
                 if best.as_ref().is_none_or(|b| cost < b.0) {
                     best = Some((cost, slice.clone(), k));
                 }
             }
         }
-        let (_, slice, half) = best.expect("at least three surfaces");
-        self.order[first..first + count].copy_from_slice(&slice);
-        let left = self.build(first, half);
-        let right = self.build(first + half, count - half);
-        let node = &mut self.nodes[me as usize];
-        node.first = left;
-        node.count = 0;
-        node.right = right;
-        me
+        // a leaf of a few packets, tested without a box in between, when that is cheaper
+        if count <= PACKETS * W && best.as_ref().is_none_or(|b| packets(count) <= b.0) {
+            return Binary { surfaces, ..leaf };
+        }
+        let (_, slice, half) = best.expect("more than four surfaces");
+        surfaces = slice;
+        let right = surfaces.split_off(half);
+        Binary {
+            lo,
+            hi,
+            surfaces: Vec::new(),
+            kids: Some(Box::new([self.split(surfaces), self.split(right)])),
+        }
+    }
+
+    /// The 4-wide tree of a binary one: each node takes up to four descendants, opening the
+    /// inner one of largest area first; returns the reference to `tree`.
+    fn collapse(&mut self, tree: &Binary) -> u32 {
+        let Some(kids) = &tree.kids else {
+            let first = self.leaves.len() as u32;
+            for chunk in tree.surfaces.chunks(W) {
+                let mut lanes = [[[0.0; W]; 3]; 4];
+                let mut id = [u32::MAX; W];
+                for (k, &i) in chunk.iter().enumerate() {
+                    let q = &self.quads[i as usize];
+                    for (lane, vector) in lanes.iter_mut().zip([q.p0, q.n, q.u, q.v]) {
+                        for a in 0..3 {
+                            lane[a][k] = vector[a];
+                        }
+                    }
+                    id[k] = i;
+                }
+                let [p0, n, u, v] = lanes.map(|l| l.map(Lanes4));
+                self.leaves.push(Leaf { p0, n, u, v, id });
+            }
+            let packets = self.leaves.len() as u32 - first;
+            return LEAF | first << 1 | (packets - 1);
+        };
+        let mut open: Vec<&Binary> = vec![&kids[0], &kids[1]];
+        while open.len() < W {
+            let widest = (0..open.len())
+                .filter(|&k| open[k].kids.is_some())
+                .max_by(|&a, &b| open[a].area().total_cmp(&open[b].area()));
+            let Some(k) = widest else { break };
+            let pair = open[k].kids.as_ref().expect("inner");
+            open[k] = &pair[0];
+            open.insert(k + 1, &pair[1]);
+        }
+        // lanes past `count` keep a zero box; the walks mask them out
+        let mut lo = [[0.0; W]; 3];
+        let mut hi = [[0.0; W]; 3];
+        for (k, b) in open.iter().enumerate() {
+            for a in 0..3 {
+                lo[a][k] = b.lo[a];
+                hi[a][k] = b.hi[a];
+            }
+        }
+        let me = self.nodes.len();
+        self.nodes.push(Node {
+            lo: lo.map(Lanes4),
+            hi: hi.map(Lanes4),
+            child: [0; W],
+            count: open.len() as u32,
+        });
+        for (k, b) in open.into_iter().enumerate() {
+            let child = self.collapse(b);
+            self.nodes[me].child[k] = child;
+        }
+        me as u32
     }
 
     /// The nearest hit with distance in (t_min, t_max) along `o + t d`, skipping `skip`.
     pub fn first_hit(&self, o: V3, d: V3, t_min: f64, t_max: f64, skip: [usize; 2]) -> Option<Hit> {
-        let mut best: Option<Hit> = None;
-        let mut t_max = t_max;
-        self.traverse(o, d, t_min, &mut t_max, |i, t_max| {
-            if i != skip[0] && i != skip[1] {
-                if let Some(hit) = intersect(&self.quads[i], i, o, d, t_min, *t_max) {
-                    *t_max = hit.dist;
-                    best = Some(hit);
-                }
-            }
-            false
-        });
-        best
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = self.avx2 {
+            return simd.vectorize(|| nearest(simd, self, o, d, t_min, t_max, skip));
+        }
+        nearest(Portable, self, o, d, t_min, t_max, skip)
     }
 
     /// Whether some surface other than `skip` crosses the open segment (a, b): any hit ends
     /// the walk.
     pub fn occluded(&self, a: V3, b: V3, skip: [usize; 2]) -> bool {
         let d = sub(b, a);
-        let (t_min, mut t_max) = (1e-9, 1.0 - 1e-9);
-        let mut hit = false;
-        self.traverse(a, d, t_min, &mut t_max, |i, t_max| {
-            hit = i != skip[0] && i != skip[1] && crosses(&self.quads[i], a, d, t_min, *t_max);
-            hit
-        });
-        hit
-    }
-
-    /// Visits the surfaces in the leaves whose boxes the ray o + t d meets for t in
-    /// (t_min, t_max); `leaf` may shorten t_max and returns whether to stop. Generic, so that
-    /// each query's test is inlined into the loop.
-    fn traverse(
-        &self,
-        o: V3,
-        d: V3,
-        t_min: f64,
-        t_max: &mut f64,
-        mut leaf: impl FnMut(usize, &mut f64) -> bool,
-    ) {
-        if self.nodes.is_empty() {
-            return;
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = self.avx2 {
+            return simd.vectorize(|| any_hit(simd, self, a, d, 1e-9, 1.0 - 1e-9, skip));
         }
-        let inv = [1.0 / d[0], 1.0 / d[1], 1.0 / d[2]];
-        let mut stack = [0u32; 64];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let node = &self.nodes[stack[top] as usize];
-            if !slab(node, o, inv, t_min, *t_max) {
-                continue;
-            }
-            if node.count == 0 {
-                stack[top] = node.first;
-                stack[top + 1] = node.right;
-                top += 2;
-                continue;
-            }
-            for &i in &self.order[node.first as usize..(node.first + node.count) as usize] {
-                if leaf(i as usize, t_max) {
-                    return;
+        any_hit(Portable, self, a, d, 1e-9, 1.0 - 1e-9, skip)
+    }
+}
+
+/// The vector operations of the walks, on four `f64` lanes: AVX2 registers where the processor
+/// has them (chosen at run time through `pulp`), two SSE2 halves (`wide`) elsewhere.
+trait Lanes: Copy {
+    type F: Copy;
+    /// Lane masks, all ones where a comparison holds.
+    type M: Copy;
+    fn load(self, x: &Lanes4) -> Self::F;
+    fn splat(self, x: f64) -> Self::F;
+    fn store(self, x: Self::F) -> [f64; W];
+    fn add(self, a: Self::F, b: Self::F) -> Self::F;
+    fn sub(self, a: Self::F, b: Self::F) -> Self::F;
+    fn mul(self, a: Self::F, b: Self::F) -> Self::F;
+    fn lt(self, a: Self::F, b: Self::F) -> Self::M;
+    fn le(self, a: Self::F, b: Self::F) -> Self::M;
+    fn and(self, a: Self::M, b: Self::M) -> Self::M;
+    /// `a` where `m` is set, else `b`.
+    fn select(self, m: Self::M, a: Self::F, b: Self::F) -> Self::F;
+    /// Lane k's mask as bit k.
+    fn bits(self, m: Self::M) -> u32;
+}
+
+#[derive(Clone, Copy)]
+struct Portable;
+
+impl Lanes for Portable {
+    type F = wide::f64x4;
+    type M = wide::f64x4;
+    #[inline(always)]
+    fn load(self, x: &Lanes4) -> Self::F {
+        wide::f64x4::new(x.0)
+    }
+    #[inline(always)]
+    fn splat(self, x: f64) -> Self::F {
+        wide::f64x4::splat(x)
+    }
+    #[inline(always)]
+    fn store(self, x: Self::F) -> [f64; W] {
+        x.to_array()
+    }
+    #[inline(always)]
+    fn add(self, a: Self::F, b: Self::F) -> Self::F {
+        a + b
+    }
+    #[inline(always)]
+    fn sub(self, a: Self::F, b: Self::F) -> Self::F {
+        a - b
+    }
+    #[inline(always)]
+    fn mul(self, a: Self::F, b: Self::F) -> Self::F {
+        a * b
+    }
+    #[inline(always)]
+    fn lt(self, a: Self::F, b: Self::F) -> Self::M {
+        a.simd_lt(b)
+    }
+    #[inline(always)]
+    fn le(self, a: Self::F, b: Self::F) -> Self::M {
+        a.simd_le(b)
+    }
+    #[inline(always)]
+    fn and(self, a: Self::M, b: Self::M) -> Self::M {
+        a & b
+    }
+    #[inline(always)]
+    fn select(self, m: Self::M, a: Self::F, b: Self::F) -> Self::F {
+        m.select(a, b)
+    }
+    #[inline(always)]
+    fn bits(self, m: Self::M) -> u32 {
+        m.to_bitmask()
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Lanes for pulp::x86::V3 {
+    type F = pulp::f64x4;
+    type M = pulp::m64x4;
+    #[inline(always)]
+    fn load(self, x: &Lanes4) -> Self::F {
+        pulp::cast(x.0)
+    }
+    #[inline(always)]
+    fn splat(self, x: f64) -> Self::F {
+        self.splat_f64x4(x)
+    }
+    #[inline(always)]
+    fn store(self, x: Self::F) -> [f64; W] {
+        pulp::cast(x)
+    }
+    #[inline(always)]
+    fn add(self, a: Self::F, b: Self::F) -> Self::F {
+        self.add_f64x4(a, b)
+    }
+    #[inline(always)]
+    fn sub(self, a: Self::F, b: Self::F) -> Self::F {
+        self.sub_f64x4(a, b)
+    }
+    #[inline(always)]
+    fn mul(self, a: Self::F, b: Self::F) -> Self::F {
+        self.mul_f64x4(a, b)
+    }
+    #[inline(always)]
+    fn lt(self, a: Self::F, b: Self::F) -> Self::M {
+        self.cmp_lt_f64x4(a, b)
+    }
+    #[inline(always)]
+    fn le(self, a: Self::F, b: Self::F) -> Self::M {
+        self.cmp_le_f64x4(a, b)
+    }
+    #[inline(always)]
+    fn and(self, a: Self::M, b: Self::M) -> Self::M {
+        self.and_m64x4(a, b)
+    }
+    #[inline(always)]
+    fn select(self, m: Self::M, a: Self::F, b: Self::F) -> Self::F {
+        self.select_f64x4(m, a, b)
+    }
+    #[inline(always)]
+    fn bits(self, m: Self::M) -> u32 {
+        self.avx._mm256_movemask_pd(pulp::cast(m)) as u32
+    }
+}
+
+/// The walk for [`Bvh::occluded`]; children are visited in any order.
+#[inline(always)]
+fn any_hit<L: Lanes>(
+    simd: L,
+    bvh: &Bvh,
+    o: V3,
+    d: V3,
+    t_min: f64,
+    t_max: f64,
+    skip: [usize; 2],
+) -> bool {
+    let Some(root) = bvh.root else {
+        return false;
+    };
+    let ray = Ray::new(simd, o, d, t_min, skip);
+    let t_max = simd.splat(t_max);
+    let mut stack: SmallVec<[u32; 48]> = SmallVec::new();
+    stack.push(root);
+    while let Some(r) = stack.pop() {
+        if r & LEAF != 0 {
+            for leaf in packets(bvh, r) {
+                if ray.crossings(leaf, t_max).1 != 0 {
+                    return true;
                 }
             }
+            continue;
         }
+        let node = &bvh.nodes[r as usize];
+        let (_, mut hits) = ray.slabs(node, t_max);
+        while hits != 0 {
+            stack.push(node.child[hits.trailing_zeros() as usize]);
+            hits &= hits - 1;
+        }
+    }
+    false
+}
+
+/// The walk for [`Bvh::first_hit`]: nearer children first, and a child whose box starts
+/// beyond the nearest hit so far is dropped when it comes off the stack.
+#[inline(always)]
+fn nearest<L: Lanes>(
+    simd: L,
+    bvh: &Bvh,
+    o: V3,
+    d: V3,
+    t_min: f64,
+    t_max: f64,
+    skip: [usize; 2],
+) -> Option<Hit> {
+    let root = bvh.root?;
+    let ray = Ray::new(simd, o, d, t_min, skip);
+    let mut best: Option<Hit> = None;
+    let mut t_max = t_max;
+    let mut stack: SmallVec<[(u32, f64); 48]> = SmallVec::new();
+    stack.push((root, t_min));
+    while let Some((r, enter)) = stack.pop() {
+        if enter > t_max {
+            continue;
+        }
+        if r & LEAF != 0 {
+            for leaf in packets(bvh, r) {
+                let (at, mut hits) = ray.crossings(leaf, simd.splat(t_max));
+                while hits != 0 {
+                    let k = hits.trailing_zeros() as usize;
+                    hits &= hits - 1;
+                    let (t, s, u) = at.at(k);
+                    if t < t_max {
+                        t_max = t;
+                        best = Some(Hit {
+                            surface: leaf.id[k] as usize,
+                            dist: t,
+                            s,
+                            t: u,
+                        });
+                    }
+                }
+            }
+            continue;
+        }
+        let node = &bvh.nodes[r as usize];
+        let (near, mut hits) = ray.slabs(node, simd.splat(t_max));
+        // push the farthest first so that the nearest comes off the stack first
+        let mut order: SmallVec<[(f64, u32); W]> = SmallVec::new();
+        while hits != 0 {
+            let k = hits.trailing_zeros() as usize;
+            hits &= hits - 1;
+            order.push((near[k], node.child[k]));
+        }
+        order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+        stack.extend(order.into_iter().map(|(t, c)| (c, t)));
+    }
+    best
+}
+
+/// The packets of the leaf reference `r`.
+#[inline(always)]
+fn packets(bvh: &Bvh, r: u32) -> &[Leaf] {
+    let first = ((r & !LEAF) >> 1) as usize;
+    &bvh.leaves[first..=first + (r & 1) as usize]
+}
+
+/// A ray `o + t d`, t > t_min, set up for four lanes at a time.
+struct Ray<L: Lanes> {
+    simd: L,
+    o: [L::F; 3],
+    d: [L::F; 3],
+    inv: [L::F; 3],
+    t_min: L::F,
+    skip: [u32; 2],
+}
+
+impl<L: Lanes> Ray<L> {
+    #[inline(always)]
+    fn new(simd: L, o: V3, d: V3, t_min: f64, skip: [usize; 2]) -> Ray<L> {
+        Ray {
+            simd,
+            o: o.map(|c| simd.splat(c)),
+            d: d.map(|c| simd.splat(c)),
+            inv: d.map(|c| simd.splat(1.0 / c)),
+            t_min: simd.splat(t_min),
+            // u32::MAX marks empty lanes, which never cross anyway
+            skip: skip.map(|s| u32::try_from(s).unwrap_or(u32::MAX)),
+        }
+    }
+
+    /// The slab test against a node's four boxes: the entry distances, and the lanes (bits)
+    /// whose box the ray meets within (t_min, t_max).
+    #[inline(always)]
+    fn slabs(&self, n: &Node, t_max: L::F) -> ([f64; W], u32) {
+        let v = self.simd;
+        let mut near = self.t_min;
+        let mut far = t_max;
+        for a in 0..3 {
+            let t0 = v.mul(v.sub(v.load(&n.lo[a]), self.o[a]), self.inv[a]);
+            let t1 = v.mul(v.sub(v.load(&n.hi[a]), self.o[a]), self.inv[a]);
+            let swap = v.lt(t1, t0);
+            let (lo, hi) = (v.select(swap, t1, t0), v.select(swap, t0, t1));
+            // NaN (0 · ∞ on a box face) compares false and leaves the interval unchanged
+            near = v.select(v.lt(near, lo), lo, near);
+            far = v.select(v.lt(hi, far), hi, far);
+        }
+        let lanes = (1u32 << n.count) - 1;
+        (v.store(near), v.bits(v.le(near, far)) & lanes)
+    }
+
+    /// Where the ray meets the planes of a leaf's four parallelograms, and the lanes (bits)
+    /// whose parallelogram it crosses within (t_min, t_max), other than the skipped surfaces.
+    /// The tests multiply through by |d·n| instead of dividing by it; a ray parallel to a
+    /// plane (or an empty lane, of zero normal) has d·n = 0 and fails them.
+    #[inline(always)]
+    fn crossings(&self, l: &Leaf, t_max: L::F) -> (Crossings, u32) {
+        let v = self.simd;
+        let dot = |a: &[L::F; 3], b: &[Lanes4; 3]| {
+            let p = |k: usize| v.mul(a[k], v.load(&b[k]));
+            v.add(v.add(p(0), p(1)), p(2))
+        };
+        let w = [0, 1, 2].map(|k| v.sub(v.load(&l.p0[k]), self.o[k]));
+        let num = dot(&w, &l.n);
+        let den = dot(&self.d, &l.n);
+        // (s, u) × den of the point t d − w relative to p0, by the dual basis
+        let s = v.sub(v.mul(num, dot(&self.d, &l.u)), v.mul(den, dot(&w, &l.u)));
+        let u = v.sub(v.mul(num, dot(&self.d, &l.v)), v.mul(den, dot(&w, &l.v)));
+        let zero = v.splat(0.0);
+        let neg = v.lt(den, zero);
+        let flip = |x: L::F| v.select(neg, v.sub(zero, x), x);
+        let (a, tn, sn, un) = (flip(den), flip(num), flip(s), flip(u));
+        let on = v.and(
+            v.and(v.lt(v.mul(self.t_min, a), tn), v.lt(tn, v.mul(t_max, a))),
+            v.and(
+                v.and(v.le(zero, sn), v.le(sn, a)),
+                v.and(v.le(zero, un), v.le(un, a)),
+            ),
+        );
+        let mut skipped = 0;
+        for k in 0..W {
+            skipped |= ((l.id[k] == self.skip[0]) | (l.id[k] == self.skip[1])) as u32 * (1 << k);
+        }
+        let fractions = Crossings {
+            num: v.store(num),
+            den: v.store(den),
+            s: v.store(s),
+            u: v.store(u),
+        };
+        (fractions, v.bits(on) & !skipped)
     }
 }
 
-#[inline(always)]
-fn slab(n: &Node, o: V3, inv: V3, t_min: f64, t_max: f64) -> bool {
-    let mut lo = t_min;
-    let mut hi = t_max;
-    for a in 0..3 {
-        let t0 = (n.lo[a] - o[a]) * inv[a];
-        let t1 = (n.hi[a] - o[a]) * inv[a];
-        let (near, far) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
-        // NaN (0 · ∞ on a box face) compares false and leaves the interval unchanged
-        if near > lo {
-            lo = near;
-        }
-        if far < hi {
-            hi = far;
-        }
-    }
-    lo <= hi
+/// A leaf's crossings as fractions over den = d·n: t = num / den, and (s, u) likewise.
+struct Crossings {
+    num: [f64; W],
+    den: [f64; W],
+    s: [f64; W],
+    u: [f64; W],
 }
 
-/// Whether the ray o + t d meets the parallelogram for some t in (t_min, t_max).
-#[inline(always)]
-fn crosses(q: &Parallelogram, o: V3, d: V3, t_min: f64, t_max: f64) -> bool {
-    let den = dot(d, q.n);
-    let w = sub(q.p0, o);
-    let num = dot(w, q.n);
-    // t = num / den in (t_min, t_max), without the division
-    let inside = if den > 0.0 {
-        num > t_min * den && num < t_max * den
-    } else if den < 0.0 {
-        num < t_min * den && num > t_max * den
-    } else {
-        false
-    };
-    if !inside {
-        return false;
+impl Crossings {
+    /// (t, s, u) of lane k.
+    #[inline(always)]
+    fn at(&self, k: usize) -> (f64, f64, f64) {
+        let d = self.den[k];
+        (self.num[k] / d, self.s[k] / d, self.u[k] / d)
     }
-    let t = num / den;
-    let p = [
-        o[0] + t * d[0] - q.p0[0],
-        o[1] + t * d[1] - q.p0[1],
-        o[2] + t * d[2] - q.p0[2],
-    ];
-    let s = dot(p, q.u);
-    let u = dot(p, q.v);
-    (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&u)
-}
-
-/// Ray o + t d against a parallelogram (either side), t in (t_min, t_max).
-#[inline(always)]
-fn intersect(q: &Parallelogram, i: usize, o: V3, d: V3, t_min: f64, t_max: f64) -> Option<Hit> {
-    let den = dot(d, q.n);
-    if den == 0.0 {
-        return None;
-    }
-    let t = dot(sub(q.p0, o), q.n) / den;
-    if !(t > t_min && t < t_max) {
-        return None;
-    }
-    let p = [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]];
-    let (s, u) = q.params(p);
-    ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&u)).then_some(Hit {
-        surface: i,
-        dist: t,
-        s,
-        t: u,
-    })
 }
 
 #[cfg(test)]
@@ -330,24 +666,112 @@ mod tests {
         }
     }
 
+    /// The reference: one parallelogram at a time, solving o + t d = p0 + s e1 + u e3 by
+    /// Cramer's rule (independent of the dual basis the tree uses).
+    fn brute(quads: &[Parallelogram], o: V3, d: V3, t_max: f64, skip: [usize; 2]) -> Option<Hit> {
+        let det = |a: V3, b: V3, c: V3| {
+            a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0])
+        };
+        (0..quads.len())
+            .filter(|i| !skip.contains(i))
+            .filter_map(|i| {
+                let q = &quads[i];
+                // t d − s e1 − u e3 = p0 − o
+                let m = [
+                    d,
+                    [-q.e1[0], -q.e1[1], -q.e1[2]],
+                    [-q.e3[0], -q.e3[1], -q.e3[2]],
+                ];
+                let r = sub(q.p0, o);
+                let den = det(m[0], m[1], m[2]);
+                if den == 0.0 {
+                    return None;
+                }
+                let t = det(r, m[1], m[2]) / den;
+                let s = det(m[0], r, m[2]) / den;
+                let u = det(m[0], m[1], r) / den;
+                let on = (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&u);
+                (on && t > 1e-9 && t < t_max).then_some(Hit {
+                    surface: i,
+                    dist: t,
+                    s,
+                    t: u,
+                })
+            })
+            .min_by(|a, b| a.dist.total_cmp(&b.dist))
+    }
+
+    fn agree(quads: &[Parallelogram], rays: usize, box_size: [f64; 3], seed: u64) -> usize {
+        let bvh = Bvh::new(quads);
+        let mut rnd = uniform(seed);
+        let mut hits = 0;
+        for n in 0..rays {
+            let mut point = || box_size.map(|l| rnd() * (l + 1.0) - 0.5);
+            let (o, e) = (point(), point());
+            let d = sub(e, o);
+            let skip = if n % 3 == 0 {
+                [n % quads.len(), (n / 7) % quads.len()]
+            } else {
+                [usize::MAX; 2]
+            };
+            let want = brute(quads, o, d, 1.0 - 1e-9, skip);
+            let got = bvh.first_hit(o, d, 1e-9, 1.0 - 1e-9, skip);
+            assert_eq!(got.map(|h| h.surface), want.map(|h| h.surface));
+            if let (Some(g), Some(w)) = (got, want) {
+                assert!((g.dist - w.dist).abs() < 1e-12, "{g:?} {w:?}");
+                assert!((g.s - w.s).abs() < 1e-9 && (g.t - w.t).abs() < 1e-9);
+            }
+            assert_eq!(bvh.occluded(o, e, skip), want.is_some());
+            // the portable lanes give the same answers as the vector unit's
+            let portable = nearest(Portable, &bvh, o, d, 1e-9, 1.0 - 1e-9, skip);
+            assert_eq!(portable, got);
+            let blocked = any_hit(Portable, &bvh, o, d, 1e-9, 1.0 - 1e-9, skip);
+            assert_eq!(blocked, want.is_some());
+            // an unbounded ray finds the nearest hit of the whole line's forward half
+            let far = bvh.first_hit(o, d, 1e-9, f64::INFINITY, skip);
+            let want = brute(quads, o, d, f64::INFINITY, skip);
+            assert_eq!(far.map(|h| h.surface), want.map(|h| h.surface));
+            hits += want.is_some() as usize;
+        }
+        hits
+    }
+
     #[test]
     fn nearest_hit_and_occlusion_agree_with_brute_force() {
         let quads: Vec<_> = (0..9)
             .map(|i| square(i as f64 * 0.5, (i % 3) as f64 * 0.7))
             .collect();
+        let hits = agree(&quads, 2000, [2.0, 1.0, 4.0], 12345);
+        assert!(hits > 500, "{hits}");
+    }
+
+    #[test]
+    fn a_deep_tree_of_tilted_plates_agrees_with_brute_force() {
+        // 300 small plates of random size and orientation in a 4 × 4 × 4 box: a tree of
+        // several levels, with leaves of one to four plates
+        let mut rnd = uniform(777);
+        let quads: Vec<_> = (0..300)
+            .map(|_| {
+                let c = [rnd() * 4.0, rnd() * 4.0, rnd() * 4.0];
+                let mut e = || [rnd() - 0.5, rnd() - 0.5, rnd() - 0.5];
+                let (e1, e3) = (e(), e());
+                Parallelogram::new(&[
+                    c,
+                    [c[0] + e1[0], c[1] + e1[1], c[2] + e1[2]],
+                    [
+                        c[0] + e1[0] + e3[0],
+                        c[1] + e1[1] + e3[1],
+                        c[2] + e1[2] + e3[2],
+                    ],
+                    [c[0] + e3[0], c[1] + e3[1], c[2] + e3[2]],
+                ])
+            })
+            .collect();
         let bvh = Bvh::new(&quads);
-        let mut rnd = uniform(12345);
-        for _ in 0..2000 {
-            let o = [rnd() * 3.0 - 0.5, rnd() * 2.0 - 0.5, rnd() * 5.0 - 0.5];
-            let e = [rnd() * 3.0 - 0.5, rnd() * 2.0 - 0.5, rnd() * 5.0 - 0.5];
-            let d = sub(e, o);
-            let brute = (0..quads.len())
-                .filter_map(|i| intersect(&quads[i], i, o, d, 1e-9, 1.0 - 1e-9))
-                .min_by(|a, b| a.dist.total_cmp(&b.dist));
-            let got = bvh.first_hit(o, d, 1e-9, 1.0 - 1e-9, [usize::MAX; 2]);
-            assert_eq!(got.map(|h| h.surface), brute.map(|h| h.surface));
-            assert_eq!(bvh.occluded(o, e, [usize::MAX; 2]), brute.is_some());
-        }
+        assert!(bvh.nodes.len() > 10, "{}", bvh.nodes.len());
+        let hits = agree(&quads, 3000, [4.0; 3], 4242);
+        assert!(hits > 1000 && hits < 2900, "{hits}");
     }
 
     #[test]
