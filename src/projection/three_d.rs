@@ -273,6 +273,10 @@ pub fn matrix(
 
 /// ∫_i ∫_j K² V dy dx for every ordered pair of surfaces (row-major `S × S`) on `cells × cells`
 /// order-0 pieces: the denominator of eq. (5). Pairs that touch diverge: `skip` them.
+///
+/// K is symmetric and so is V, so each unordered pair is integrated once and entered twice;
+/// pairs of pieces with the same shape up to translation (most of them on parallel or
+/// perpendicular walls) share one integral of K², and only the visible fraction is per pair.
 pub fn kernel_squares(
     geo: &Geometry,
     cells: usize,
@@ -282,13 +286,15 @@ pub fn kernel_squares(
 ) -> Result<Vec<f64>, Cancelled> {
     let s = geo.len();
     let acc = accuracy(q);
-    (0..s * s)
+    let unit = geo.quads.iter().map(|q| q.diameter()).fold(0.0, f64::max) * (-32f64).exp2();
+    let upper: Vec<f64> = (0..s * s)
         .into_par_iter()
         .map(|ij| {
             let (i, j) = (ij / s, ij % s);
-            if i == j || skip(i, j) || !geo.facing(i, j) {
+            if i >= j || skip(i, j) || !geo.facing(i, j) {
                 return Ok(0.0);
             }
+            let mut squares = std::collections::HashMap::new();
             let mut sum = 0.0;
             let mut rays = 0;
             for a in 0..cells * cells {
@@ -310,13 +316,31 @@ pub fn kernel_squares(
                     );
                     let v = geo.visibility(pa, pb, seed, VISIBILITY_GRID, &mut rays);
                     if v > 0.0 {
-                        let mut out = [0.0];
-                        transfer::block(&geo.quads, pa, pb, Integrand::Squared, acc, &mut out);
-                        sum += v * out[0];
+                        let k2 = squares
+                            .entry(transfer::shape(&geo.quads, pa, pb, unit))
+                            .or_insert_with(|| {
+                                let mut out = [0.0];
+                                transfer::block(
+                                    &geo.quads,
+                                    pa,
+                                    pb,
+                                    Integrand::Squared,
+                                    acc,
+                                    &mut out,
+                                );
+                                out[0]
+                            });
+                        sum += v * *k2;
                     }
                 }
             }
             Ok(sum)
         })
-        .collect()
+        .collect::<Result<_, _>>()?;
+    Ok((0..s * s)
+        .map(|ij| {
+            let (i, j) = (ij / s, ij % s);
+            upper[i.min(j) * s + i.max(j)]
+        })
+        .collect())
 }
