@@ -225,7 +225,7 @@ pub fn matrix(
             }
             evaluations.fetch_add(evals, Ordering::Relaxed);
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-            if d % 16 == 0 || d == blocks {
+            if d.is_multiple_of(16) || d == blocks {
                 progress.report(Phase::Projection, d as f64 / blocks as f64);
             }
             Ok::<(), Cancelled>(())

@@ -258,7 +258,7 @@ pub fn matrix(
                 }
             }
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-            if d % 16 == 0 || d == blocks {
+            if d.is_multiple_of(16) || d == blocks {
                 progress.report(Phase::Projection, d as f64 / blocks as f64);
             }
             Ok::<(u64, u64), Cancelled>((rays, evaluations))
