@@ -22,6 +22,7 @@
 pub mod basis;
 pub mod bvh;
 pub mod compress;
+pub mod congruence;
 pub mod field;
 pub mod geometry;
 pub mod hierarchy;

@@ -12,7 +12,7 @@
 
 use crate::basis::legendre;
 use crate::quadrature::Rule;
-use crate::space::{cross, dot, norm, point_quad, quad_quad, sub, Parallelogram, V3};
+use crate::space::{add, cross, dot, norm, point_quad, quad_quad, scale, sub, Parallelogram, V3};
 use crate::visibility3d::Piece;
 
 /// Largest k = m + 1 (the document allows m ≤ 8) and Gauss rule handled on the stack.
@@ -74,29 +74,6 @@ pub enum Integrand {
     Squared,
 }
 
-/// The shape of a pair of pieces up to translation, on a grid of `unit`: both pieces' edge
-/// vectors (which fix their normals and bases) and the offset between their first corners.
-/// The transfer of eq. (11) depends on nothing else, so pairs of equal shape share one
-/// block: on the regular quadtrees of a room most links at a level repeat a few shapes.
-pub type Shape = [i64; 15];
-
-pub fn shape(quads: &[Parallelogram], a: Piece, b: Piece, unit: f64) -> Shape {
-    let ca = quads[a.surface].piece(a.s, a.t);
-    let cb = quads[b.surface].piece(b.s, b.t);
-    let vectors = [
-        sub(ca[1], ca[0]),
-        sub(ca[3], ca[0]),
-        sub(cb[1], cb[0]),
-        sub(cb[3], cb[0]),
-        sub(cb[0], ca[0]),
-    ];
-    let mut out = [0; 15];
-    for (o, x) in out.iter_mut().zip(vectors.iter().flatten()) {
-        *o = (x / unit).round() as i64;
-    }
-    out
-}
-
 /// Adds the transfer from `b` to `a` to `out` (k² × k² for Galerkin, 1 for Squared).
 /// Returns the number of kernel evaluations (a closed-form point-to-polygon form factor
 /// counts as one).
@@ -127,6 +104,7 @@ pub fn block(
         acc,
         scale,
         evaluations: std::cell::Cell::new(0),
+        samples: std::cell::RefCell::new(Vec::new()),
     };
     ctx.pair(Rect { s: a.s, t: a.t }, Rect { s: b.s, t: b.t }, 0, out);
     ctx.evaluations.get()
@@ -177,7 +155,24 @@ struct Ctx<'a> {
     acc: Accuracy,
     scale: f64,
     evaluations: std::cell::Cell<u64>,
+    /// Rule points on pieces of `b` with the basis there, by (piece, q): the far rule and the
+    /// inner integral of every outer point use the same few.
+    samples: std::cell::RefCell<Vec<Samples>>,
 }
+
+/// A q × q Gauss rule on a piece of `b`: its points and the basis there times the weights.
+struct Samples {
+    rect: Rect,
+    q: usize,
+    points: Vec<V3>,
+    weights: Vec<f64>,
+    /// `weights[j] · N_c(points[j])`, row j.
+    phi: Vec<f64>,
+}
+
+/// How many pieces' samples a block keeps: the far rules and the inner integrals of a near
+/// pair need a few; a fine inner quadtree around each point would only churn a longer list.
+const KEPT_SAMPLES: usize = 8;
 
 fn corners(q: &Parallelogram, r: Rect) -> [V3; 4] {
     q.piece(r.s, r.t)
@@ -188,16 +183,6 @@ fn diameter(c: &[V3; 4]) -> f64 {
 }
 
 impl Ctx<'_> {
-    fn kernel(&self, x: V3, y: V3) -> f64 {
-        self.evaluations.set(self.evaluations.get() + 1);
-        let v = crate::kernel::three_d(x, self.qa.n, y, self.qb.n);
-        if self.squared {
-            v * v
-        } else {
-            v
-        }
-    }
-
     /// Basis values of piece `a` (or `b`) at parameter (s, t), times `w`, into `out[..k²]`.
     fn basis(&self, of_a: bool, s: f64, t: f64, w: f64, out: &mut [f64]) {
         let k = self.k;
@@ -219,6 +204,14 @@ impl Ctx<'_> {
         let ca = corners(self.qa, ra);
         let cb = corners(self.qb, rb);
         let size = diameter(&ca).max(diameter(&cb));
+        // most pairs are far enough that their fewest points do, which a lower bound of the
+        // distance (between the pieces' circumscribed balls) shows without the exact distance
+        let ball = |c: &[V3; 4]| (scale(add(c[0], c[2]), 0.5), 0.5 * diameter(c));
+        let ((ma, ra_), (mb, rb_)) = (ball(&ca), ball(&cb));
+        let below = norm(sub(ma, mb)) - ra_ - rb_;
+        if below >= size && points(below, size, self.acc.digits) <= self.acc.q_min {
+            return self.far(ra, rb, self.acc.q_min.min(MAX_Q), out);
+        }
         let dist = quad_quad(&ca, self.qa.n, &cb, self.qb.n);
         if dist >= size {
             let q = points(dist, size, self.acc.digits)
@@ -240,42 +233,82 @@ impl Ctx<'_> {
         }
     }
 
+    /// The samples of `rb` at q × q points, made once per block.
+    fn with_samples<R>(&self, rb: Rect, q: usize, f: impl FnOnce(&Samples) -> R) -> R {
+        let same = |x: &Samples| x.q == q && x.rect.s == rb.s && x.rect.t == rb.t;
+        if let Some(hit) = self.samples.borrow().iter().find(|x| same(x)) {
+            return f(hit);
+        }
+        let kk = self.k * self.k;
+        let rule = Rule::gauss(q);
+        let mut made = Samples {
+            rect: rb,
+            q,
+            points: Vec::with_capacity(q * q),
+            weights: Vec::with_capacity(q * q),
+            phi: vec![0.0; q * q * kk],
+        };
+        for (t, wt) in rule.mapped(rb.t[0], rb.t[1]) {
+            for (s, ws) in rule.mapped(rb.s[0], rb.s[1]) {
+                let n = made.points.len();
+                self.basis(false, s, t, ws * wt, &mut made.phi[n * kk..(n + 1) * kk]);
+                made.points.push(self.qb.at(s, t));
+                made.weights.push(ws * wt);
+            }
+        }
+        let out = f(&made);
+        let mut kept = self.samples.borrow_mut();
+        if kept.len() < KEPT_SAMPLES {
+            kept.push(made);
+        }
+        out
+    }
+
+    /// K(x, y_j) for every sample point, without a branch (so that the loop vectorizes);
+    /// squared for [`Integrand::Squared`].
+    fn kernels(&self, x: V3, points: &[V3], out: &mut [f64]) {
+        let (na, nb) = (self.qa.n, self.qb.n);
+        for (k, y) in out.iter_mut().zip(points) {
+            let r = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
+            let ca = (r[0] * na[0] + r[1] * na[1] + r[2] * na[2]).max(0.0);
+            let cb = (-(r[0] * nb[0] + r[1] * nb[1] + r[2] * nb[2])).max(0.0);
+            let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+            *k = ca * cb / (std::f64::consts::PI * r2 * r2);
+        }
+        if self.squared {
+            out.iter_mut().for_each(|k| *k *= *k);
+        }
+        self.evaluations
+            .set(self.evaluations.get() + points.len() as u64);
+    }
+
     /// Tensor rule: q² points on each piece.
     fn far(&self, ra: Rect, rb: Rect, q: usize, out: &mut [f64]) {
         let kk = self.k * self.k;
-        let rule = Rule::gauss(q);
-        let mut phi_b = vec![0.0; q * q * kk];
-        let mut ys = vec![[0.0; 3]; q * q];
-        let mut n = 0;
-        for (t, wt) in rule.mapped(rb.t[0], rb.t[1]) {
-            for (s, ws) in rule.mapped(rb.s[0], rb.s[1]) {
-                self.basis(false, s, t, ws * wt, &mut phi_b[n * kk..(n + 1) * kk]);
-                ys[n] = self.qb.at(s, t);
-                n += 1;
-            }
-        }
-        let mut phi_a = [0.0; MAX_K * MAX_K];
-        let mut tmp = [0.0; MAX_K * MAX_K];
-        for (t, wt) in rule.mapped(ra.t[0], ra.t[1]) {
-            for (s, ws) in rule.mapped(ra.s[0], ra.s[1]) {
-                let x = self.qa.at(s, t);
-                tmp[..kk].fill(0.0);
-                for (y, phi) in ys[..n].iter().zip(phi_b.chunks_exact(kk)) {
-                    let kv = self.kernel(x, *y);
-                    if kv != 0.0 {
+        self.with_samples(rb, q, |b| {
+            let rule = Rule::gauss(q);
+            let mut kv = [0.0; MAX_Q * MAX_Q];
+            let kv = &mut kv[..b.points.len()];
+            let mut phi_a = [0.0; MAX_K * MAX_K];
+            let mut tmp = [0.0; MAX_K * MAX_K];
+            for (t, wt) in rule.mapped(ra.t[0], ra.t[1]) {
+                for (s, ws) in rule.mapped(ra.s[0], ra.s[1]) {
+                    self.kernels(self.qa.at(s, t), &b.points, kv);
+                    tmp[..kk].fill(0.0);
+                    for (kj, phi) in kv.iter().zip(b.phi.chunks_exact(kk)) {
                         for c in 0..kk {
-                            tmp[c] += kv * phi[c];
+                            tmp[c] += kj * phi[c];
+                        }
+                    }
+                    self.basis(true, s, t, ws * wt * self.scale, &mut phi_a[..kk]);
+                    for r in 0..kk {
+                        for c in 0..kk {
+                            out[r * kk + c] += phi_a[r] * tmp[c];
                         }
                     }
                 }
-                self.basis(true, s, t, ws * wt * self.scale, &mut phi_a[..kk]);
-                for r in 0..kk {
-                    for c in 0..kk {
-                        out[r * kk + c] += phi_a[r] * tmp[c];
-                    }
-                }
             }
-        }
+        })
     }
 
     /// The outer integral over `ra`, split toward `rb` where the distance changes.
@@ -400,22 +433,23 @@ impl Ctx<'_> {
             points(d, diam, self.acc.digits).max(self.acc.q_min)
         }
         .min(MAX_Q);
-        let rule = Rule::gauss(q);
-        let mut phi = [0.0; MAX_K * MAX_K];
-        for (t, wt) in rule.mapped(rb.t[0], rb.t[1]) {
-            for (s, ws) in rule.mapped(rb.s[0], rb.s[1]) {
-                let kv = self.kernel(x, self.qb.at(s, t));
-                if kv == 0.0 {
-                    continue;
-                }
-                let w = ws * wt * kv;
-                self.basis(false, s, t, w, &mut phi[..kk]);
-                match base {
-                    Some(b) => (0..kk).for_each(|c| out[c] += phi[c] - w * b[c]),
-                    None => (0..kk).for_each(|c| out[c] += phi[c]),
+        self.with_samples(rb, q, |b| {
+            let mut kv = [0.0; MAX_Q * MAX_Q];
+            let kv = &mut kv[..b.points.len()];
+            self.kernels(x, &b.points, kv);
+            for (kj, phi) in kv.iter().zip(b.phi.chunks_exact(kk)) {
+                for c in 0..kk {
+                    out[c] += kj * phi[c];
                 }
             }
-        }
+            // minus base_j ∫ K: the subtracted value at the point nearest x
+            if let Some(base) = base {
+                let sum: f64 = kv.iter().zip(&b.weights).map(|(k, w)| k * w).sum();
+                for c in 0..kk {
+                    out[c] -= sum * base[c];
+                }
+            }
+        })
     }
 }
 

@@ -7,6 +7,7 @@
 use super::{Dense, Discretization, Layout, System};
 use crate::basis::legendre;
 use crate::bvh::Bvh;
+use crate::congruence::Congruence;
 use crate::progress::{Cancelled, Phase, Progress};
 use crate::quadrature::Rule;
 use crate::scene::Quad;
@@ -275,8 +276,8 @@ pub fn matrix(
 /// order-0 pieces: the denominator of eq. (5). Pairs that touch diverge: `skip` them.
 ///
 /// K is symmetric and so is V, so each unordered pair is integrated once and entered twice;
-/// pairs of pieces with the same shape up to translation (most of them on parallel or
-/// perpendicular walls) share one integral of K², and only the visible fraction is per pair.
+/// congruent pairs of pieces ([`crate::congruence`]: most of them on parallel or perpendicular
+/// walls) share one integral of K², and only the visible fraction is per pair.
 pub fn kernel_squares(
     geo: &Geometry,
     cells: usize,
@@ -294,7 +295,7 @@ pub fn kernel_squares(
             if i >= j || skip(i, j) || !geo.facing(i, j) {
                 return Ok(0.0);
             }
-            let mut squares = std::collections::HashMap::new();
+            let mut squares = rustc_hash::FxHashMap::default();
             let mut sum = 0.0;
             let mut rays = 0;
             for a in 0..cells * cells {
@@ -317,7 +318,7 @@ pub fn kernel_squares(
                     let v = geo.visibility(pa, pb, seed, VISIBILITY_GRID, &mut rays);
                     if v > 0.0 {
                         let k2 = squares
-                            .entry(transfer::shape(&geo.quads, pa, pb, unit))
+                            .entry(Congruence::of(&geo.quads, pa, pb, unit, false).key)
                             .or_insert_with(|| {
                                 let mut out = [0.0];
                                 transfer::block(

@@ -24,9 +24,10 @@
 
 use super::tree::{push, Element, NONE};
 use super::Hierarchy;
+use crate::congruence::Congruence;
 use crate::progress::{Cancelled, Progress};
 use crate::projection::three_d::VISIBILITY_GRID;
-use crate::space::{norm, quad_quad, sub};
+use crate::space::{norm, quad_quad, sub, V3};
 use crate::transfer::{self, Integrand};
 use crate::visibility3d::{pair_seed, Piece};
 use rayon::prelude::*;
@@ -103,7 +104,8 @@ impl Hierarchy<'_> {
                 }
             }
         }
-        let size = norm(sub(ca[2], ca[0])).max(norm(sub(cb[2], cb[0])));
+        let diameter = |c: &[V3; 4]| norm(sub(c[2], c[0])).max(norm(sub(c[3], c[1])));
+        let size = diameter(&ca).max(diameter(&cb));
         let dist = quad_quad(&ca, qr.n, &cb, qs.n);
         (f, (size / (size + dist)).powi(self.k as i32))
     }
@@ -241,13 +243,16 @@ impl Hierarchy<'_> {
     ) -> Result<(), Cancelled> {
         while !pairs.is_empty() {
             progress.check()?;
-            // the estimate depends on the pair's shape only: once per shape
+            // the estimate depends on the pair's shape only: once per class of congruent
+            // pairs (the estimate's points are symmetric on the receiver)
             let piece = |e: u32| self.elements[e as usize].piece;
-            let shapes: Vec<transfer::Shape> = pairs
+            let classes: Vec<_> = pairs
                 .par_iter()
-                .map(|&(r, s)| transfer::shape(&self.geo.quads, piece(r), piece(s), self.unit))
+                .map(|&(r, s)| {
+                    Congruence::of(&self.geo.quads, piece(r), piece(s), self.unit, true).key
+                })
                 .collect();
-            let (unique, slots) = first_of_each(shapes.into_iter().zip(pairs.iter().copied()));
+            let (unique, slots) = first_of_each(classes.into_iter().zip(pairs.iter().copied()));
             let estimates: Vec<(f64, f64)> = unique
                 .par_iter()
                 .map(|&(r, s)| self.estimate(r, s))
@@ -284,76 +289,52 @@ impl Hierarchy<'_> {
         Ok(())
     }
 
-    /// Integrates the blocks of accepted pairs, in parallel: one per shape of pair
-    /// ([`transfer::shape`]), with T_ba = T_abᵀ (the kernel is symmetric and the bases
-    /// orthonormal) so that a pair and its reverse share one too.
+    /// Integrates the blocks of accepted pairs, in parallel: one per class of congruent pairs
+    /// ([`crate::congruence`]; a pair and its reverse are congruent, T_ba = T_abᵀ, since the
+    /// kernel is symmetric and the bases orthonormal), mapped to the others.
     pub(super) fn make_links(
         &self,
         pending: &[(u32, u32, Factors, f64)],
         progress: &dyn Progress,
     ) -> Result<Vec<Link>, Cancelled> {
-        let kk = self.k * self.k;
+        let k = self.k;
         let piece = |e: u32| self.elements[e as usize].piece;
-        // (shape, whether the pair is the reverse of the shape's representative)
-        let shapes: Vec<(transfer::Shape, bool)> = pending
+        let classes: Vec<Congruence> = pending
             .par_iter()
             .map(|&(r, s, _, _)| {
-                let ab = transfer::shape(&self.geo.quads, piece(r), piece(s), self.unit);
-                let ba = transfer::shape(&self.geo.quads, piece(s), piece(r), self.unit);
-                if ba < ab {
-                    (ba, true)
-                } else {
-                    (ab, false)
-                }
+                Congruence::of(&self.geo.quads, piece(r), piece(s), self.unit, false)
             })
             .collect();
-        let (unique, slots) = first_of_each(pending.iter().zip(&shapes).map(
-            |(&(r, s, _, _), &(shape, reverse))| (shape, if reverse { (s, r) } else { (r, s) }),
-        ));
+        let (unique, slots) = first_of_each(classes.iter().map(|c| c.key).zip(0..pending.len()));
         let blocks: Vec<Vec<f64>> = unique
             .par_iter()
-            .map(|&(a, b)| {
+            .map(|&i| {
                 progress.check()?;
-                let mut block = vec![0.0; kk * kk];
+                let (a, b) = (pending[i].0, pending[i].1);
+                let mut block = vec![0.0; k.pow(4)];
                 let evaluations = transfer::block(
                     &self.geo.quads,
                     piece(a),
                     piece(b),
-                    Integrand::Galerkin { k: self.k },
+                    Integrand::Galerkin { k },
                     self.accuracy,
                     &mut block,
                 );
                 self.evaluations
                     .fetch_add(evaluations, std::sync::atomic::Ordering::Relaxed);
-                Ok(block)
+                Ok(classes[i].to_class(&block, k))
             })
             .collect::<Result<_, Cancelled>>()?;
         Ok(pending
             .iter()
-            .zip(shapes.iter().zip(slots))
-            .map(
-                |(&(recv, src, factors, visibility), (&(_, reverse), slot))| {
-                    let block = &blocks[slot];
-                    let block = (0..kk * kk)
-                        .map(|i| {
-                            let (row, col) = (i / kk, i % kk);
-                            let v = if reverse {
-                                block[col * kk + row]
-                            } else {
-                                block[i]
-                            };
-                            v * visibility
-                        })
-                        .collect();
-                    Link {
-                        recv,
-                        src,
-                        factors,
-                        visibility,
-                        block,
-                    }
-                },
-            )
+            .zip(classes.iter().zip(slots))
+            .map(|(&(recv, src, factors, visibility), (class, slot))| Link {
+                recv,
+                src,
+                factors,
+                visibility,
+                block: class.from_class(&blocks[slot], k, visibility),
+            })
             .collect())
     }
 }
@@ -362,7 +343,7 @@ impl Hierarchy<'_> {
 fn first_of_each<K: std::hash::Hash + Eq, T>(
     items: impl Iterator<Item = (K, T)>,
 ) -> (Vec<T>, Vec<usize>) {
-    let mut index = std::collections::HashMap::new();
+    let mut index = rustc_hash::FxHashMap::default();
     let mut firsts = Vec::new();
     let slots = items
         .map(|(key, item)| {
