@@ -164,7 +164,8 @@ struct Ctx<'a> {
 struct Samples {
     rect: Rect,
     q: usize,
-    points: Vec<V3>,
+    /// The points' coordinates, one array each (so that the kernel loop vectorizes).
+    points: [Vec<f64>; 3],
     weights: Vec<f64>,
     /// `weights[j] · N_c(points[j])`, row j.
     phi: Vec<f64>,
@@ -244,15 +245,16 @@ impl Ctx<'_> {
         let mut made = Samples {
             rect: rb,
             q,
-            points: Vec::with_capacity(q * q),
+            points: std::array::from_fn(|_| Vec::with_capacity(q * q)),
             weights: Vec::with_capacity(q * q),
             phi: vec![0.0; q * q * kk],
         };
         for (t, wt) in rule.mapped(rb.t[0], rb.t[1]) {
             for (s, ws) in rule.mapped(rb.s[0], rb.s[1]) {
-                let n = made.points.len();
+                let n = made.weights.len();
                 self.basis(false, s, t, ws * wt, &mut made.phi[n * kk..(n + 1) * kk]);
-                made.points.push(self.qb.at(s, t));
+                let y = self.qb.at(s, t);
+                (0..3).for_each(|i| made.points[i].push(y[i]));
                 made.weights.push(ws * wt);
             }
         }
@@ -266,10 +268,12 @@ impl Ctx<'_> {
 
     /// K(x, y_j) for every sample point, without a branch (so that the loop vectorizes);
     /// squared for [`Integrand::Squared`].
-    fn kernels(&self, x: V3, points: &[V3], out: &mut [f64]) {
+    fn kernels(&self, x: V3, points: &[Vec<f64>; 3], out: &mut [f64]) {
         let (na, nb) = (self.qa.n, self.qb.n);
-        for (k, y) in out.iter_mut().zip(points) {
-            let r = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
+        let [px, py, pz] = points;
+        let n = out.len();
+        for (j, k) in out.iter_mut().enumerate() {
+            let r = [px[j] - x[0], py[j] - x[1], pz[j] - x[2]];
             let ca = (r[0] * na[0] + r[1] * na[1] + r[2] * na[2]).max(0.0);
             let cb = (-(r[0] * nb[0] + r[1] * nb[1] + r[2] * nb[2])).max(0.0);
             let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
@@ -278,8 +282,7 @@ impl Ctx<'_> {
         if self.squared {
             out.iter_mut().for_each(|k| *k *= *k);
         }
-        self.evaluations
-            .set(self.evaluations.get() + points.len() as u64);
+        self.evaluations.set(self.evaluations.get() + n as u64);
     }
 
     /// Tensor rule: q² points on each piece.
@@ -288,7 +291,7 @@ impl Ctx<'_> {
         self.with_samples(rb, q, |b| {
             let rule = Rule::gauss(q);
             let mut kv = [0.0; MAX_Q * MAX_Q];
-            let kv = &mut kv[..b.points.len()];
+            let kv = &mut kv[..b.weights.len()];
             let mut phi_a = [0.0; MAX_K * MAX_K];
             let mut tmp = [0.0; MAX_K * MAX_K];
             for (t, wt) in rule.mapped(ra.t[0], ra.t[1]) {
@@ -435,7 +438,7 @@ impl Ctx<'_> {
         .min(MAX_Q);
         self.with_samples(rb, q, |b| {
             let mut kv = [0.0; MAX_Q * MAX_Q];
-            let kv = &mut kv[..b.points.len()];
+            let kv = &mut kv[..b.weights.len()];
             self.kernels(x, &b.points, kv);
             for (kj, phi) in kv.iter().zip(b.phi.chunks_exact(kk)) {
                 for c in 0..kk {

@@ -42,29 +42,35 @@ impl Piece {
 /// than the ~100 axes of the thorough test; the per-surface test runs once.
 pub fn may_occlude(points: &[V3; 8], thorough: bool, q: &Parallelogram) -> bool {
     let qc = q.piece([0.0, 1.0], [0.0, 1.0]);
-    let scale = q.diameter()
-        + points
-            .iter()
-            .map(|p| norm(sub(*p, points[0])))
-            .fold(0.0, f64::max);
+    // the tolerance's scale: q's size plus the points' bounding box
+    let (mut lo, mut hi) = (points[0], points[0]);
+    for p in &points[1..] {
+        for i in 0..3 {
+            lo[i] = lo[i].min(p[i]);
+            hi[i] = hi[i].max(p[i]);
+        }
+    }
+    let scale = q.diameter() + norm(sub(hi, lo));
     let tol = 1e-9 * scale;
+    // projections on the unnormalised axis, the tolerance scaled to match: no division
     let separated = |axis: V3| {
-        let l = norm(axis);
-        if l <= 1e-12 * scale * scale {
+        let l2 = dot(axis, axis);
+        if l2 <= 1e-24 * scale * scale * scale * scale {
             return false;
         }
         let (mut plo, mut phi) = (f64::INFINITY, f64::NEG_INFINITY);
         for p in points {
-            let v = dot(*p, axis) / l;
+            let v = dot(*p, axis);
             plo = plo.min(v);
             phi = phi.max(v);
         }
         let (mut qlo, mut qhi) = (f64::INFINITY, f64::NEG_INFINITY);
         for p in &qc {
-            let v = dot(*p, axis) / l;
+            let v = dot(*p, axis);
             qlo = qlo.min(v);
             qhi = qhi.max(v);
         }
+        let tol = tol * l2.sqrt();
         phi <= qlo + tol || qhi <= plo + tol
     };
     if separated(q.n) || (0..3).any(|a| separated(unit(a))) {
@@ -129,6 +135,17 @@ pub fn occluders_of(
         .copied()
         .filter(|&k| k != a.surface && k != b.surface && may_occlude(&pts, thorough, &quads[k]))
         .collect()
+}
+
+/// Whether any of `candidates` (other than the pieces' own surfaces) may occlude some ray
+/// between pieces `a` and `b`: the quick test of [`may_occlude`], stopping at the first.
+pub fn any_occluder(quads: &[Parallelogram], a: Piece, b: Piece, candidates: &[usize]) -> bool {
+    let ca = a.corners(quads);
+    let cb = b.corners(quads);
+    let pts = [ca[0], ca[1], ca[2], ca[3], cb[0], cb[1], cb[2], cb[3]];
+    candidates
+        .iter()
+        .any(|&k| k != a.surface && k != b.surface && may_occlude(&pts, false, &quads[k]))
 }
 
 /// For every ordered pair of surfaces (row-major `S × S`), the surfaces that may occlude it.

@@ -13,7 +13,7 @@ use crate::quadrature::Rule;
 use crate::scene::Quad;
 use crate::space::{quad_quad, Parallelogram};
 use crate::transfer::{self, Accuracy, Integrand};
-use crate::visibility3d::{self, occluders_of, pair_seed, Piece};
+use crate::visibility3d::{self, pair_seed, Piece};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -87,7 +87,7 @@ impl Geometry {
     /// between them; rays cast are added to `rays`.
     pub fn visibility(&self, a: Piece, b: Piece, seed: u64, grid: usize, rays: &mut u64) -> f64 {
         let cand = &self.occluders[a.surface * self.len() + b.surface];
-        if cand.is_empty() || occluders_of(&self.quads, a, b, cand, false).is_empty() {
+        if !visibility3d::any_occluder(&self.quads, a, b, cand) {
             return 1.0;
         }
         visibility3d::visible_fraction(&self.bvh, a, b, grid, seed, rays)

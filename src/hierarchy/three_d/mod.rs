@@ -466,7 +466,7 @@ pub fn solve(
         .iter()
         .flat_map(|l| l.block.iter().map(|v| v.abs()))
         .collect();
-    sorted.sort_by(|a, b| b.total_cmp(a));
+    sorted.par_sort_unstable_by(|a, b| b.total_cmp(a));
     // Σ‖block‖² per pair of surfaces, for eq. (5) by Parseval over the link blocks
     let surfaces = h.quads.len();
     let mut kept_squares = vec![0.0; surfaces * surfaces];
