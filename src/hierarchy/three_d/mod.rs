@@ -244,13 +244,19 @@ impl<'g> Hierarchy<'g> {
             }
         }
         starts.push(self.links.len());
+        // every element's B side by side: the gather reads them in no particular order
+        let all_b: Vec<Rgb> = self
+            .elements
+            .iter()
+            .flat_map(|e| e.b.iter().copied())
+            .collect();
         let gathered: Vec<(u32, Vec<Rgb>)> = starts
             .par_windows(2)
             .map(|w| {
                 let links = &self.links[w[0]..w[1]];
                 let mut h = vec![[0.0; 3]; kk];
                 for l in links {
-                    let b = &self.elements[l.src as usize].b;
+                    let b = &all_b[l.src as usize * kk..(l.src as usize + 1) * kk];
                     for (hr, row) in h.iter_mut().zip(l.block.chunks_exact(kk)) {
                         for (v, bc) in row.iter().zip(b) {
                             for ch in 0..3 {
@@ -282,47 +288,49 @@ impl<'g> Hierarchy<'g> {
     }
 
     /// Pushes `down` (H from the ancestors, in e's basis) to the leaves and pulls B back up.
+    /// The coefficient vectors of the recursion live on the stack: a sweep visits every
+    /// element, and one allocation each would cost as much as the arithmetic.
     fn push_pull(&mut self, e: u32, down: &[Rgb], change: &mut f64, norm: &mut f64) {
+        const MAX_KK: usize = crate::transfer::MAX_K * crate::transfer::MAX_K;
         let kk = self.k * self.k;
-        let mut total: Vec<Rgb> = self.elements[e as usize].h.clone();
-        for (t, d) in total.iter_mut().zip(down) {
+        let mut total = [[0.0; 3]; MAX_KK];
+        let el = &self.elements[e as usize];
+        for i in 0..kk {
             for c in 0..3 {
-                t[c] += d[c];
+                total[i][c] = el.h[i][c] + down[i][c];
             }
         }
-        let el = &self.elements[e as usize];
         if el.is_leaf() {
             let rho = self.quads[el.piece.surface].material.reflectance;
-            let mut b = vec![[0.0; 3]; kk];
+            let el = &mut self.elements[e as usize];
             for i in 0..kk {
                 for c in 0..3 {
-                    b[i][c] = el.e[i][c] + rho[c] * total[i][c];
-                    *change += (b[i][c] - el.b[i][c]).powi(2);
-                    *norm += b[i][c].powi(2);
+                    let b = el.e[i][c] + rho[c] * total[i][c];
+                    *change += (b - el.b[i][c]).powi(2);
+                    *norm += b * b;
+                    el.b[i][c] = b;
                 }
             }
-            let el = &mut self.elements[e as usize];
-            el.b = b;
             // the leaf keeps its total irradiance in h for the energy balance
-            el.h = total;
+            el.h.copy_from_slice(&total[..kk]);
             return;
         }
         let first = el.children;
-        let mut b = vec![[0.0; 3]; kk];
-        let mut child_down = vec![[0.0; 3]; kk];
+        let mut b = [[0.0; 3]; MAX_KK];
+        let mut child_down = [[0.0; 3]; MAX_KK];
         for i in 0..4u32 {
             let (dt, ds) = ((i / 2) as usize, (i % 2) as usize);
-            push(self.filters, &total, dt, ds, &mut child_down);
-            self.push_pull(first + i, &child_down.clone(), change, norm);
+            push(self.filters, &total[..kk], dt, ds, &mut child_down[..kk]);
+            self.push_pull(first + i, &child_down[..kk], change, norm);
             pull(
                 self.filters,
                 &self.elements[(first + i) as usize].b,
                 dt,
                 ds,
-                &mut b,
+                &mut b[..kk],
             );
         }
-        self.elements[e as usize].b = b;
+        self.elements[e as usize].b.copy_from_slice(&b[..kk]);
     }
 
     /// Fields of B, E and H over each surface, from the leaves.
