@@ -179,7 +179,8 @@ fn corners(q: &Parallelogram, r: Rect) -> [V3; 4] {
     q.piece(r.s, r.t)
 }
 
-fn diameter(c: &[V3; 4]) -> f64 {
+/// The longer diagonal of a parallelogram given by its corners.
+pub fn diameter(c: &[V3; 4]) -> f64 {
     norm(sub(c[2], c[0])).max(norm(sub(c[3], c[1])))
 }
 

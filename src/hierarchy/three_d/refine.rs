@@ -27,7 +27,7 @@ use super::Hierarchy;
 use crate::congruence::Congruence;
 use crate::progress::{Cancelled, Progress};
 use crate::projection::three_d::VISIBILITY_GRID;
-use crate::space::{norm, quad_quad, sub, V3};
+use crate::space::quad_quad;
 use crate::transfer::{self, Integrand};
 use crate::visibility3d::{pair_seed, Piece};
 use rayon::prelude::*;
@@ -104,8 +104,7 @@ impl Hierarchy<'_> {
                 }
             }
         }
-        let diameter = |c: &[V3; 4]| norm(sub(c[2], c[0])).max(norm(sub(c[3], c[1])));
-        let size = diameter(&ca).max(diameter(&cb));
+        let size = transfer::diameter(&ca).max(transfer::diameter(&cb));
         let dist = quad_quad(&ca, qr.n, &cb, qs.n);
         (f, (size / (size + dist)).powi(self.k as i32))
     }
