@@ -32,40 +32,28 @@ pub struct Relabel {
 }
 
 impl Relabel {
-    pub const ALL: [Relabel; 8] = {
-        let mut all = [Relabel {
-            swap: false,
-            flip_s: false,
-            flip_t: false,
-        }; 8];
-        let mut i = 0;
-        while i < 8 {
-            all[i] = Relabel {
-                swap: i & 4 != 0,
-                flip_s: i & 1 != 0,
-                flip_t: i & 2 != 0,
-            };
-            i += 1;
-        }
-        all
-    };
+    /// The flips (ŝ, t̂) that put the origin at each corner, in the order of
+    /// [`Parallelogram::piece`]: (0,0), (1,0), (1,1), (0,1).
+    const ORIGIN_FLIPS: [(bool, bool); 4] =
+        [(false, false), (true, false), (true, true), (false, true)];
 
-    /// The corners of a piece (in the order of [`Parallelogram::piece`]: (0,0), (1,0), (1,1),
-    /// (0,1)) in the new labels: the origin and the two edge vectors.
-    pub fn frame(self, c: &[V3; 4]) -> (V3, V3, V3) {
-        let [o, a, b] = self.corners();
-        (c[o], sub(c[a], c[o]), sub(c[b], c[o]))
+    /// The labelling with its origin at `corner`, with or without the swap.
+    pub fn from_corner(corner: usize, swap: bool) -> Relabel {
+        let (flip_s, flip_t) = Relabel::ORIGIN_FLIPS[corner];
+        Relabel {
+            swap,
+            flip_s,
+            flip_t,
+        }
     }
 
-    /// Which corners (indices into the corners of [`Relabel::frame`]) are the origin and
+    /// Which corners of a piece (in the order of [`Parallelogram::piece`]) are the origin and
     /// the ends of the first and second edge in the new labels.
     pub fn corners(self) -> [usize; 3] {
-        let origin = match (self.flip_s, self.flip_t) {
-            (false, false) => 0,
-            (true, false) => 1,
-            (true, true) => 2,
-            (false, true) => 3,
-        };
+        let origin = Relabel::ORIGIN_FLIPS
+            .iter()
+            .position(|&f| f == (self.flip_s, self.flip_t))
+            .expect("four corners for four pairs of flips");
         // the corner across the old ŝ edge and across the old t̂ edge from the origin
         let across_s = [1, 0, 3, 2][origin];
         let across_t = [3, 2, 1, 0][origin];
@@ -226,13 +214,8 @@ fn ordered(
         // the key's fine part starts with the origin: the labellings of y that start at its
         // smallest corner (two: with or without the swap) are the only candidates
         let origin = (1..4).fold(0, |m, i| if corners[i] < corners[m] { i } else { m });
-        let flips = [(false, false), (true, false), (true, true), (false, true)][origin];
         for swap in [false, true] {
-            let ry = Relabel {
-                swap,
-                flip_s: flips.0,
-                flip_t: flips.1,
-            };
+            let ry = Relabel::from_corner(origin, swap);
             let [o, a, b] = ry.corners().map(|i| corners[i]);
             let mut key = [0; 18];
             key[..6].copy_from_slice(&best_coarse);
@@ -257,6 +240,31 @@ mod tests {
     use crate::transfer::{block, Accuracy, Integrand};
     use rand::{rngs::SmallRng, Rng, SeedableRng};
 
+    /// Every labelling.
+    const ALL: [Relabel; 8] = {
+        let mut all = [Relabel {
+            swap: false,
+            flip_s: false,
+            flip_t: false,
+        }; 8];
+        let mut i = 0;
+        while i < 8 {
+            all[i] = Relabel {
+                swap: i & 4 != 0,
+                flip_s: i & 1 != 0,
+                flip_t: i & 2 != 0,
+            };
+            i += 1;
+        }
+        all
+    };
+
+    /// The origin and the two edge vectors of a piece with corners `c` in the labels `r`.
+    fn frame(r: Relabel, c: &[V3; 4]) -> (V3, V3, V3) {
+        let [o, a, b] = r.corners();
+        (c[o], sub(c[a], c[o]), sub(c[b], c[o]))
+    }
+
     /// A parallelogram from its corners with the given front normal (a relabelling or a
     /// reflection reverses the corners' turn, not the side that faces the scene).
     fn with_normal(c: [V3; 4], n: V3) -> Parallelogram {
@@ -274,7 +282,7 @@ mod tests {
         r: Relabel,
         surface: usize,
     ) -> (Parallelogram, Piece) {
-        let (o, u, v) = r.frame(&q.piece([0.0, 1.0], [0.0, 1.0]));
+        let (o, u, v) = frame(r, &q.piece([0.0, 1.0], [0.0, 1.0]));
         let new = with_normal([o, add(o, u), add(add(o, u), v), add(o, v)], q.n);
         let flip = |x: [f64; 2], f: bool| if f { [1.0 - x[1], 1.0 - x[0]] } else { x };
         let (s, t) = (flip(p.s, r.flip_s), flip(p.t, r.flip_t));
@@ -335,8 +343,8 @@ mod tests {
         };
         for k in 1..=4 {
             let t = galerkin(&[floor, wall], a, b, k);
-            for ra in Relabel::ALL {
-                for rb in [Relabel::ALL[0], Relabel::ALL[5], Relabel::ALL[6]] {
+            for ra in ALL {
+                for rb in [ALL[0], ALL[5], ALL[6]] {
                     let (fa, pa) = relabelled(&floor, a, ra, 0);
                     let (fb, pb) = relabelled(&wall, b, rb, 1);
                     let direct = galerkin(&[fa, fb], pa, pb, k);
@@ -443,10 +451,7 @@ mod tests {
             let moved = |q: &Parallelogram| {
                 with_normal(q.piece([0.0, 1.0], [0.0, 1.0]).map(apply), turn(q.n))
             };
-            let (ra, rb) = (
-                Relabel::ALL[rng.random_range(0..8)],
-                Relabel::ALL[rng.random_range(0..8)],
-            );
+            let (ra, rb) = (ALL[rng.random_range(0..8)], ALL[rng.random_range(0..8)]);
             let (ma, pa) = relabelled(&moved(&qa), a, ra, 0);
             let (mb, pb) = relabelled(&moved(&qb), b, rb, 1);
             let swapped = case % 3 == 0;
