@@ -9,6 +9,9 @@
 //!   per pair of points that face each other through the [`Bvh`], each weighted by the kernel.
 //!   The jitter is seeded from the indices of the two pieces, so the same document gives the
 //!   same fractions.
+//! - The same rays, grouped by the quarter of the receiver they start from, give the visible
+//!   fraction as a 2 × 2 step over the receiver ([`Seen`]); a Galerkin block is weighted by it
+//!   on the receiver's side, so a shadow edge through a receiver shows in its polynomial.
 
 use crate::bvh::Bvh;
 use crate::space::{cross, dot, norm, sub, Parallelogram, V3};
@@ -187,13 +190,126 @@ pub fn pair_seed(a: u64, b: u64) -> u64 {
     r.next_u64()
 }
 
+/// What the rays between two pieces saw: the visible fraction of the whole transfer, and of
+/// the part of it that arrives on each quarter of the receiver `a` (index `ds + 2 dt` by the
+/// halves of its (s, t) range).
+///
+/// A shadow edge crosses a receiver as a step; one fraction for the whole link spreads it
+/// evenly (the floor next to a box gets the same share of sky at the box's foot as a cell's
+/// width away from it). The quarters keep a 2 × 2 step of it, from the same rays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Seen {
+    pub whole: f64,
+    pub quarters: [f64; 4],
+}
+
+impl Seen {
+    /// Nothing in between.
+    pub const CLEAR: Seen = Seen {
+        whole: 1.0,
+        quarters: [1.0; 4],
+    };
+
+    /// Weighs a Galerkin block (`k² × k²`, row = receiver coefficient) by the visible
+    /// fraction as a function on the receiver, piecewise constant on its quarters: the block
+    /// becomes W · block with W = Σ_quarters V_quarter M_quarter ([`Quarters`]), the
+    /// receiver's basis multiplied by that step function and projected back.
+    ///
+    /// At order 0 (k = 1) a receiver holds one constant, which the step cannot change: W
+    /// would be the plain mean of the quarters, and the whole fraction, weighted by the
+    /// kernel, is the better estimate of the same number.
+    pub fn weigh(&self, quarters: &Quarters, block: &mut [f64]) {
+        if quarters.k == 1 || self.quarters.iter().all(|&v| v == self.whole) {
+            block.iter_mut().for_each(|x| *x *= self.whole);
+            return;
+        }
+        let kk = quarters.k * quarters.k;
+        let mut w = vec![0.0; kk * kk];
+        for (m, &v) in quarters.m.iter().zip(&self.quarters) {
+            w.iter_mut().zip(m).for_each(|(w, m)| *w += v * m);
+        }
+        let old = block.to_vec();
+        for a in 0..kk {
+            for b in 0..kk {
+                block[a * kk + b] = (0..kk).map(|c| w[a * kk + c] * old[c * kk + b]).sum();
+            }
+        }
+    }
+}
+
+/// M_quarter[a][c] = ∫_quarter φ_a φ_c over the unit square, for the tensor products
+/// φ_a = φ_p(ŝ) φ_q(t̂) (`a = q k + p`) of the orthonormal shifted Legendre polynomials of
+/// [`crate::basis::legendre`]: the Gram matrices of the basis on the four quarters (they sum
+/// to the identity).
+#[derive(Debug, Clone)]
+pub struct Quarters {
+    pub k: usize,
+    pub m: [Vec<f64>; 4],
+}
+
+impl Quarters {
+    pub fn new(k: usize) -> Quarters {
+        // ∫ φ_p φ_q over [0, ½] and over [½, 1], exactly by Gauss
+        let rule = crate::quadrature::Rule::for_degree(2 * (k - 1));
+        let mut phi = vec![0.0; k];
+        let half = [[0.0, 0.5], [0.5, 1.0]].map(|[lo, hi]| {
+            let mut m = vec![0.0; k * k];
+            for (x, w) in rule.mapped(lo, hi) {
+                crate::basis::legendre::legendre(x, &mut phi);
+                for p in 0..k {
+                    for q in 0..k {
+                        m[p * k + q] += w * phi[p] * phi[q];
+                    }
+                }
+            }
+            m
+        });
+        let kk = k * k;
+        let m = std::array::from_fn(|quarter| {
+            let (hs, ht) = (&half[quarter & 1], &half[quarter >> 1]);
+            let mut m = vec![0.0; kk * kk];
+            for a in 0..kk {
+                for c in 0..kk {
+                    m[a * kk + c] = ht[(a / k) * k + c / k] * hs[(a % k) * k + c % k];
+                }
+            }
+            m
+        });
+        Quarters { k, m }
+    }
+}
+
+/// The visible fraction of quarter `q` (index `ds + 2 dt`), which no ray sampled, from the
+/// others: the plane through three of them, across from one or two in a row, the mean of a
+/// diagonal pair, `whole` when there are none.
+fn extend(known: &[Option<f64>; 4], q: usize, whole: f64) -> f64 {
+    // neighbours across s and across t, and the diagonal
+    let (across_s, across_t, diagonal) = (known[q ^ 1], known[q ^ 2], known[q ^ 3]);
+    match (across_s, across_t, diagonal) {
+        (Some(a), Some(b), Some(c)) => (a + b - c).clamp(0.0, 1.0),
+        (Some(a), Some(b), None) => 0.5 * (a + b),
+        (Some(a), None, _) | (None, Some(a), _) => a,
+        (None, None, Some(c)) => c,
+        (None, None, None) => whole,
+    }
+}
+
 /// The visible fraction of the transfer between `a` and `b`: over a stratified `n × n` set of
 /// point pairs, Σ w V / Σ w with w the point-to-disc kernel cosθa cosθb / (π r² + A) (A the
-/// smaller piece's area, which keeps the weight finite for touching pieces). Pairs that do not
-/// face each other carry no weight and cast no ray: counting them would make a block's
-/// back-facing part, which a ray through the block itself always finds occluded, darken its
-/// front. Returns 0 when no pair faces; the number of rays cast is added to `rays`.
-pub fn visible_fraction(bvh: &Bvh, a: Piece, b: Piece, n: usize, seed: u64, rays: &mut u64) -> f64 {
+/// smaller piece's area, which keeps the weight finite for touching pieces), and the same over
+/// the pairs whose point on `a` lies in each quarter of `a` (the whole fraction where a
+/// quarter has none). Pairs that do not face each other carry no weight and cast no ray:
+/// counting them would make a block's back-facing part, which a ray through the block itself
+/// always finds occluded, darken its front. Returns 0 when no pair faces; the number of rays
+/// cast is added to `rays`.
+pub fn visible_fraction(
+    bvh: &Bvh,
+    a: Piece,
+    b: Piece,
+    n: usize,
+    seed: u64,
+    rays: &mut u64,
+) -> Seen {
     let quads = bvh.quads();
     let (qa, qb) = (&quads[a.surface], &quads[b.surface]);
     let area = |p: &Piece, q: &Parallelogram| q.area * (p.s[1] - p.s[0]) * (p.t[1] - p.t[0]);
@@ -205,13 +321,17 @@ pub fn visible_fraction(bvh: &Bvh, a: Piece, b: Piece, n: usize, seed: u64, rays
         let j = (rng.next_u64() % (i as u64 + 1)) as usize;
         perm.swap(i, j);
     }
-    let (mut seen, mut total) = (0.0, 0.0);
+    let (mut seen, mut total) = ([0.0; 4], [0.0; 4]);
     let cell = 1.0 / n as f64;
     for (i, &j) in perm.iter().enumerate() {
         let (ia, ja) = (i % n, i / n);
         let (ib, jb) = (j % n, j / n);
-        let sa = a.s[0] + (a.s[1] - a.s[0]) * (ia as f64 + rng.next_f64()) * cell;
-        let ta = a.t[0] + (a.t[1] - a.t[0]) * (ja as f64 + rng.next_f64()) * cell;
+        let (ua, va) = (
+            (ia as f64 + rng.next_f64()) * cell,
+            (ja as f64 + rng.next_f64()) * cell,
+        );
+        let sa = a.s[0] + (a.s[1] - a.s[0]) * ua;
+        let ta = a.t[0] + (a.t[1] - a.t[0]) * va;
         let sb = b.s[0] + (b.s[1] - b.s[0]) * (ib as f64 + rng.next_f64()) * cell;
         let tb = b.t[0] + (b.t[1] - b.t[0]) * (jb as f64 + rng.next_f64()) * cell;
         let (x, y) = (qa.at(sa, ta), qb.at(sb, tb));
@@ -222,17 +342,23 @@ pub fn visible_fraction(bvh: &Bvh, a: Piece, b: Piece, n: usize, seed: u64, rays
         }
         let r2 = dot(d, d);
         let w = ca * cb / (r2 * (r2 + disc));
-        total += w;
+        let quarter = usize::from(ua >= 0.5) + 2 * usize::from(va >= 0.5);
         *rays += 1;
         if !bvh.occluded(x, y, [a.surface, b.surface]) {
-            seen += w;
+            seen[quarter] += w;
         }
+        total[quarter] += w;
     }
-    if total > 0.0 {
-        seen / total
+    let sum = |v: [f64; 4]| v.iter().sum::<f64>();
+    let whole = if sum(total) > 0.0 {
+        sum(seen) / sum(total)
     } else {
         0.0
-    }
+    };
+    let fraction = |q: usize| (total[q] > 0.0).then(|| seen[q] / total[q]);
+    let known: [Option<f64>; 4] = std::array::from_fn(fraction);
+    let quarters = std::array::from_fn(|q| known[q].unwrap_or_else(|| extend(&known, q, whole)));
+    Seen { whole, quarters }
 }
 
 #[cfg(test)]
@@ -266,11 +392,11 @@ mod tests {
         assert_eq!(occ[1], vec![2]);
         let bvh = Bvh::new(&quads);
         let mut rays = 0;
-        let v = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 8, 7, &mut rays);
+        let v = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 8, 7, &mut rays).whole;
         assert_eq!(rays, 64);
         assert!(v > 0.5 && v < 1.0, "{v}");
         // same seed, same answer
-        let w = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 8, 7, &mut rays);
+        let w = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 8, 7, &mut rays).whole;
         assert_eq!(v, w);
         // a piece under the blocker sees nothing of the piece above it
         let a = Piece {
@@ -283,6 +409,84 @@ mod tests {
             s: [0.4, 0.5],
             t: [0.5, 0.6],
         };
-        assert_eq!(visible_fraction(&bvh, a, b, 4, 1, &mut rays), 0.0);
+        assert_eq!(visible_fraction(&bvh, a, b, 4, 1, &mut rays).whole, 0.0);
+    }
+
+    #[test]
+    fn quarter_grams_are_exact_and_sum_to_the_identity() {
+        for k in 1..=4 {
+            let q = Quarters::new(k);
+            let kk = k * k;
+            for a in 0..kk {
+                for c in 0..kk {
+                    let sum: f64 = q.m.iter().map(|m| m[a * kk + c]).sum();
+                    let want = if a == c { 1.0 } else { 0.0 };
+                    assert!((sum - want).abs() < 1e-13, "k {k} ({a}, {c}): {sum}");
+                }
+            }
+        }
+        // k = 2 on the quarter [0, ½]²: (∫₀^½ φ_p φ_q)_pq = [[½, −√3/4], [−√3/4, ½]] in each
+        // direction, and the Gram matrix is their tensor product
+        let q = Quarters::new(2);
+        let h = [[0.5, -(3f64).sqrt() / 4.0], [-(3f64).sqrt() / 4.0, 0.5]];
+        for a in 0..4 {
+            for c in 0..4 {
+                let want = h[a / 2][c / 2] * h[a % 2][c % 2];
+                assert!((q.m[0][a * 4 + c] - want).abs() < 1e-15);
+            }
+        }
+    }
+
+    #[test]
+    fn a_step_of_visibility_projects_onto_the_receiver() {
+        // a block that delivers a constant 1 to the receiver (first column e₀), seen on the
+        // half ŝ < ½ only: the receiver gets the projection of that step, ½ − (√3/4) φ₁(ŝ)
+        let k = 2;
+        let mut block = vec![0.0; 16];
+        block[0] = 1.0;
+        let seen = Seen {
+            whole: 0.5,
+            quarters: [1.0, 0.0, 1.0, 0.0],
+        };
+        seen.weigh(&Quarters::new(k), &mut block);
+        let column: Vec<f64> = (0..4).map(|a| block[a * 4]).collect();
+        let want = [0.5, -(3f64).sqrt() / 4.0, 0.0, 0.0];
+        for (g, w) in column.iter().zip(want) {
+            assert!((g - w).abs() < 1e-15, "{column:?}");
+        }
+        // equal quarters scale the block
+        let mut block = vec![2.0; 16];
+        Seen {
+            whole: 0.25,
+            quarters: [0.25; 4],
+        }
+        .weigh(&Quarters::new(k), &mut block);
+        assert!(block.iter().all(|&x| x == 0.5));
+    }
+
+    #[test]
+    fn quarters_see_a_shadow_edge_across_the_receiver() {
+        // a floor under a light, with a blocker over the floor's half s < ½ only: the quarters
+        // on that side see less of the light than the others
+        let floor = square(0.0, 0.0, 1.0, true);
+        let light = square(1.0, 0.0, 1.0, false);
+        let blocker = Parallelogram::new(&[
+            [-0.5, -0.5, 0.3],
+            [0.5, -0.5, 0.3],
+            [0.5, 1.5, 0.3],
+            [-0.5, 1.5, 0.3],
+        ]);
+        let quads = [floor, light, blocker];
+        let bvh = Bvh::new(&quads);
+        let mut rays = 0;
+        let v = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 16, 3, &mut rays);
+        let [q0, q1, q2, q3] = v.quarters;
+        assert!(q0 < 0.5 * q1 && q2 < 0.5 * q3, "{v:?}");
+        assert!(q0 < v.whole && v.whole < q1, "{v:?}");
+        // the missing quarters of a receiver behind the source on one side are extended
+        let known = [Some(0.2), Some(0.6), None, Some(0.8)];
+        assert!((extend(&known, 2, 0.5) - 0.4).abs() < 1e-15);
+        assert_eq!(extend(&[Some(0.2), None, None, None], 3, 0.5), 0.2);
+        assert_eq!(extend(&[None; 4], 0, 0.5), 0.5);
     }
 }

@@ -236,8 +236,8 @@ fn cornell_box_cell_means_converge_as_epsilon_shrinks() {
         "cell-mean gap to the ε = 1.25e-4 solution: ε = 4e-3: {coarse:.4}, 1e-3: {default:.4}, \
          5e-4: {fine:.4}"
     );
-    // measured: 2.4 %, 0.78 %, 0.43 %; the gaps shrink about like ε^0.8 (and 0.86 % from the
-    // default to the ε = 6.25e-5 solution): the default document is within 1 % of the limit
+    // measured: 2.1 %, 0.68 %, 0.38 % (2.4 %, 0.78 %, 0.43 % with one visible fraction per
+    // link); the gaps shrink about like ε^0.8: the default document is within 1 % of the limit
     assert!(
         default < 0.5 * coarse && fine < 0.7 * default,
         "{coarse} {default} {fine}"
@@ -274,9 +274,10 @@ fn furnace_with_a_partition_standing_on_the_floor() {
     ] {
         surfaces.push(json!({ "name": name, "corners": c, "reflectance": 0.5, "emission": 1.0 }));
     }
-    // measured worst surface mean and cell mean: 3.7e-4 and 1.9e-2 (hierarchical m = 0),
-    // 1.6e-3 and 7.6e-3 (m = 1), 3.7e-4 and 5.3e-3 (projection); what is left is the noise
-    // of 16 visibility rays per fine link
+    // measured worst surface mean and cell mean: 1.1e-3 and 2.5e-2 (hierarchical m = 0),
+    // 1.6e-3 and 8.7e-3 (m = 1; 2.0e-3 and 1.25e-2 with one visible fraction per link instead
+    // of one per quarter of the receiver), 3.7e-4 and 5.3e-3 (projection); what is left is
+    // the noise of 16 visibility rays per fine link
     for (solver, surface_tol, cell_tol) in [
         (
             json!({ "method": "hierarchical", "order": 0, "resolution": 8, "epsilon": 2e-3 }),

@@ -13,7 +13,7 @@ use crate::quadrature::Rule;
 use crate::scene::Quad;
 use crate::space::{quad_quad, Parallelogram};
 use crate::transfer::{self, Accuracy, Integrand};
-use crate::visibility3d::{self, pair_seed, Piece};
+use crate::visibility3d::{self, pair_seed, Piece, Quarters, Seen};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -85,10 +85,10 @@ impl Geometry {
 
     /// The visible fraction of the pair of pieces, 1 without rays when nothing can come
     /// between them; rays cast are added to `rays`.
-    pub fn visibility(&self, a: Piece, b: Piece, seed: u64, grid: usize, rays: &mut u64) -> f64 {
+    pub fn visibility(&self, a: Piece, b: Piece, seed: u64, grid: usize, rays: &mut u64) -> Seen {
         let cand = &self.occluders[a.surface * self.len() + b.surface];
         if !visibility3d::any_occluder(&self.quads, a, b, cand) {
-            return 1.0;
+            return Seen::CLEAR;
         }
         visibility3d::visible_fraction(&self.bvh, a, b, grid, seed, rays)
     }
@@ -210,6 +210,7 @@ pub fn matrix(
     let mut m = Dense::zeros(size);
     let done = AtomicUsize::new(0);
     let blocks = geo.len() * n * n;
+    let quarters = Quarters::new(k);
     progress.report(Phase::Projection, 0.0);
     let counts: Vec<(u64, u64)> = m
         .data
@@ -237,7 +238,7 @@ pub fn matrix(
                     };
                     let seed = pair_seed((i * n * n + a) as u64, (j * n * n + b) as u64);
                     let v = geo.visibility(pa, pb, seed, VISIBILITY_GRID, &mut rays);
-                    if v == 0.0 {
+                    if v.whole == 0.0 {
                         continue;
                     }
                     block.fill(0.0);
@@ -249,11 +250,12 @@ pub fn matrix(
                         acc,
                         &mut block,
                     );
+                    v.weigh(&quarters, &mut block);
                     for r in 0..kk {
                         let dst = &mut rows
                             [r * size + j * per + b * kk..r * size + j * per + (b + 1) * kk];
                         for (d, s) in dst.iter_mut().zip(&block[r * kk..(r + 1) * kk]) {
-                            *d = v * s;
+                            *d = *s;
                         }
                     }
                 }
@@ -316,7 +318,7 @@ pub fn kernel_squares(
                         (j * cells * cells + b) as u64,
                     );
                     let v = geo.visibility(pa, pb, seed, VISIBILITY_GRID, &mut rays);
-                    if v > 0.0 {
+                    if v.whole > 0.0 {
                         let k2 = squares
                             .entry(Congruence::of(&geo.quads, pa, pb, unit, false).key)
                             .or_insert_with(|| {
@@ -331,7 +333,7 @@ pub fn kernel_squares(
                                 );
                                 out[0]
                             });
-                        sum += v * *k2;
+                        sum += v.whole * *k2;
                     }
                 }
             }

@@ -29,7 +29,7 @@ use crate::progress::{Cancelled, Progress};
 use crate::projection::three_d::VISIBILITY_GRID;
 use crate::space::quad_quad;
 use crate::transfer::{self, Integrand};
-use crate::visibility3d::{pair_seed, Piece};
+use crate::visibility3d::{pair_seed, Piece, Quarters, Seen};
 use rayon::prelude::*;
 
 /// The geometric part of the oracle's estimate for one pair.
@@ -47,8 +47,8 @@ enum Verdict {
     /// Refine: split an element and judge its children against the other; the source
     /// first when its own variation is most of the error.
     Split { source: bool },
-    /// Accept as a link with these factors and visible fraction.
-    Link(Factors, f64),
+    /// Accept as a link with these factors and visible fractions.
+    Link(Factors, Seen),
     /// Accept, but no ray got through: no link, unless the source brightens enough to
     /// refine the pair (the factors are kept for that).
     Hidden(Factors),
@@ -61,7 +61,7 @@ pub struct Link {
     pub src: u32,
     /// The oracle's geometric factors, to judge the link again as B changes.
     pub factors: Factors,
-    /// Visible fraction.
+    /// Visible fraction (of the whole transfer).
     pub visibility: f64,
     /// k² × k², row = receiver coefficient.
     pub block: Vec<f64>,
@@ -218,12 +218,12 @@ impl Hierarchy<'_> {
         // light may pass through a gap none of them found): no smoothness credit
         let x = Factors {
             f,
-            smooth: if v < 1.0 { 1.0 } else { smooth },
+            smooth: if v.whole < 1.0 { 1.0 } else { smooth },
         };
         if let Some(v) = split(x) {
             return (v, rays);
         }
-        if v > 0.0 {
+        if v.whole > 0.0 {
             (Verdict::Link(x, v), rays)
         } else {
             (Verdict::Hidden(x), rays)
@@ -237,7 +237,7 @@ impl Hierarchy<'_> {
     pub(super) fn refine_all(
         &mut self,
         mut pairs: Vec<(u32, u32)>,
-        out: &mut Vec<(u32, u32, Factors, f64)>,
+        out: &mut Vec<(u32, u32, Factors, Seen)>,
         progress: &dyn Progress,
     ) -> Result<(), Cancelled> {
         while !pairs.is_empty() {
@@ -293,7 +293,7 @@ impl Hierarchy<'_> {
     /// kernel is symmetric and the bases orthonormal), mapped to the others.
     pub(super) fn make_links(
         &self,
-        pending: &[(u32, u32, Factors, f64)],
+        pending: &[(u32, u32, Factors, Seen)],
         progress: &dyn Progress,
     ) -> Result<Vec<Link>, Cancelled> {
         let k = self.k;
@@ -324,15 +324,20 @@ impl Hierarchy<'_> {
                 Ok(classes[i].to_class(&block, k))
             })
             .collect::<Result<_, Cancelled>>()?;
+        let quarters = Quarters::new(k);
         Ok(pending
             .iter()
             .zip(classes.iter().zip(slots))
-            .map(|(&(recv, src, factors, visibility), (class, slot))| Link {
-                recv,
-                src,
-                factors,
-                visibility,
-                block: class.from_class(&blocks[slot], k, visibility),
+            .map(|(&(recv, src, factors, seen), (class, slot))| {
+                let mut block = class.from_class(&blocks[slot], k, 1.0);
+                seen.weigh(&quarters, &mut block);
+                Link {
+                    recv,
+                    src,
+                    factors,
+                    visibility: seen.whole,
+                    block,
+                }
             })
             .collect())
     }
