@@ -146,11 +146,11 @@ impl Congruence {
         out
     }
 
-    /// The class's block in this pair's labels, times `factor`.
-    pub fn from_class(&self, class: &[f64], k: usize, factor: f64) -> Vec<f64> {
+    /// The class's block in this pair's labels.
+    pub fn from_class(&self, class: &[f64], k: usize) -> Vec<f64> {
         let mut out = vec![0.0; class.len()];
         for (c, own, sign) in self.entries(k) {
-            out[own] = sign * factor * class[c];
+            out[own] = sign * class[c];
         }
         out
     }
@@ -356,7 +356,7 @@ mod tests {
                     };
                     let mapped = c.to_class(&t, k);
                     close(&direct, &mapped, &format!("k={k} {ra:?} {rb:?}"));
-                    assert_eq!(c.from_class(&mapped, k, 1.0), t);
+                    assert_eq!(c.from_class(&mapped, k), t);
                 }
             }
         }
@@ -477,7 +477,7 @@ mod tests {
             for k in [1, 2, 3] {
                 let t1 = galerkin(&here, a, b, k);
                 let t2 = galerkin(&there, pa, pb, k);
-                let mapped = c2.from_class(&c1.to_class(&t1, k), k, 1.0);
+                let mapped = c2.from_class(&c1.to_class(&t1, k), k);
                 close(&t2, &mapped, &format!("case {case}, k={k}"));
             }
         }

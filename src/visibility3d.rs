@@ -121,6 +121,12 @@ fn unit(a: usize) -> V3 {
     v
 }
 
+/// The eight corners of pieces `a` and `b`: the hull every ray between them lies in.
+fn corners_of_pair(quads: &[Parallelogram], a: Piece, b: Piece) -> [V3; 8] {
+    let (ca, cb) = (a.corners(quads), b.corners(quads));
+    [ca[0], ca[1], ca[2], ca[3], cb[0], cb[1], cb[2], cb[3]]
+}
+
 /// The surfaces that may occlude some ray between pieces `a` and `b`, out of `candidates`
 /// (see [`may_occlude`] for `thorough`).
 pub fn occluders_of(
@@ -130,9 +136,7 @@ pub fn occluders_of(
     candidates: &[usize],
     thorough: bool,
 ) -> Vec<usize> {
-    let ca = a.corners(quads);
-    let cb = b.corners(quads);
-    let pts = [ca[0], ca[1], ca[2], ca[3], cb[0], cb[1], cb[2], cb[3]];
+    let pts = corners_of_pair(quads, a, b);
     candidates
         .iter()
         .copied()
@@ -143,9 +147,7 @@ pub fn occluders_of(
 /// Whether any of `candidates` (other than the pieces' own surfaces) may occlude some ray
 /// between pieces `a` and `b`: the quick test of [`may_occlude`], stopping at the first.
 pub fn any_occluder(quads: &[Parallelogram], a: Piece, b: Piece, candidates: &[usize]) -> bool {
-    let ca = a.corners(quads);
-    let cb = b.corners(quads);
-    let pts = [ca[0], ca[1], ca[2], ca[3], cb[0], cb[1], cb[2], cb[3]];
+    let pts = corners_of_pair(quads, a, b);
     candidates
         .iter()
         .any(|&k| k != a.surface && k != b.surface && may_occlude(&pts, false, &quads[k]))

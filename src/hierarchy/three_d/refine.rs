@@ -329,7 +329,7 @@ impl Hierarchy<'_> {
             .iter()
             .zip(classes.iter().zip(slots))
             .map(|(&(recv, src, factors, seen), (class, slot))| {
-                let mut block = class.from_class(&blocks[slot], k, 1.0);
+                let mut block = class.from_class(&blocks[slot], k);
                 seen.weigh(&quarters, &mut block);
                 Link {
                     recv,
