@@ -18,7 +18,8 @@ use std::time::Instant;
 #[derive(Debug, Clone)]
 pub struct Outcome {
     pub result: JobResult,
-    /// B over each surface.
+    /// B over each surface, as the images show it ([`Solution::shown`]); the result's
+    /// numbers are its means except on elements a solid partly covers.
     pub fields: Vec<Field>,
     /// The kernel matrix magnitudes in the chosen basis (projection method).
     pub picture: Option<MagnitudePicture>,
@@ -53,6 +54,10 @@ impl From<SolveError> for JobError {
 #[derive(Debug, Clone)]
 pub struct Solution {
     pub fields: Vec<Field>,
+    /// B as the images show it, where that differs from `fields`: on an element that a
+    /// solid partly covers, the polynomial of its exposed part up to the outline
+    /// ([`crate::cover`]), where `fields` holds the element's projection.
+    pub shown: Option<Vec<Field>>,
     pub emission: Vec<Field>,
     pub irradiance: Vec<Field>,
     pub basis_size: usize,
@@ -169,7 +174,7 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
     progress.report(Phase::Metrics, 1.0);
     Ok(Outcome {
         result,
-        fields: sol.fields,
+        fields: sol.shown.unwrap_or(sol.fields),
         picture: sol.picture,
     })
 }
@@ -307,6 +312,7 @@ pub fn projection_solve(
     let emission = fields_from_scaling(layout, order, &system.measure, &e);
     let mut sol = Solution {
         fields,
+        shown: None,
         emission,
         irradiance,
         basis_size,

@@ -11,10 +11,10 @@
 //! measures eq. (5) and (6) → [`job`] gathers the result.
 //!
 //! 3D scenes: [`space`] parametrises the parallelograms, [`bvh`] and [`visibility3d`] give the
-//! visibility term of eq. (3), [`transfer`] integrates the Galerkin blocks between pieces of
-//! them, [`projection::three_d`] assembles the projection method's matrix, [`hierarchy`] solves
-//! by hierarchical wavelet radiosity (Gortler et al. 1993; Hanrahan et al. 1991), and
-//! [`render::camera`] makes the images.
+//! visibility term of eq. (3), [`cover`] finds where a solid covers a surface, [`transfer`]
+//! integrates the Galerkin blocks between pieces of them, [`projection::three_d`] assembles the
+//! projection method's matrix, [`hierarchy`] solves by hierarchical wavelet radiosity (Gortler
+//! et al. 1993; Hanrahan et al. 1991), and [`render::camera`] makes the images.
 
 // Numerical loops index several arrays by the same subscript, as the papers' formulas do.
 #![allow(clippy::needless_range_loop)]
@@ -23,6 +23,7 @@ pub mod basis;
 pub mod bvh;
 pub mod compress;
 pub mod congruence;
+pub mod cover;
 pub mod field;
 pub mod geometry;
 pub mod hierarchy;

@@ -14,6 +14,7 @@
 //!   on the receiver's side, so a shadow edge through a receiver shows in its polynomial.
 
 use crate::bvh::Bvh;
+use crate::cover::{Mask, Partial};
 use crate::space::{cross, dot, norm, sub, Parallelogram, V3};
 
 /// A piece `[s0,s1] × [t0,t1]` of surface `surface`.
@@ -239,6 +240,33 @@ impl Seen {
     }
 }
 
+impl Seen {
+    /// [`Seen::weigh`] for a partly covered receiver: W = Σ_quarters V_quarter G_quarter
+    /// with the masked Gram matrices of its quarters ([`Partial`]), which turns the block
+    /// into the moments ∫ χ φ_a H of the exposed part. The fractions are those of the
+    /// exposed part ([`visible_fraction_over`]).
+    pub fn weigh_masked(&self, partial: &Partial, k: usize, block: &mut [f64]) {
+        let kk = k * k;
+        let uniform = k == 1 || self.quarters.iter().all(|&v| v == self.whole);
+        let mut w = vec![0.0; kk * kk];
+        if uniform {
+            w.iter_mut()
+                .zip(&partial.gram)
+                .for_each(|(w, g)| *w = self.whole * g);
+        } else {
+            for (m, &v) in partial.quarters.iter().zip(&self.quarters) {
+                w.iter_mut().zip(m).for_each(|(w, m)| *w += v * m);
+            }
+        }
+        let old = block.to_vec();
+        for a in 0..kk {
+            for b in 0..kk {
+                block[a * kk + b] = (0..kk).map(|c| w[a * kk + c] * old[c * kk + b]).sum();
+            }
+        }
+    }
+}
+
 /// M_quarter[a][c] = ∫_quarter φ_a φ_c over the unit square, for the tensor products
 /// φ_a = φ_p(ŝ) φ_q(t̂) (`a = q k + p`) of the orthonormal shifted Legendre polynomials of
 /// [`crate::basis::legendre`]: the Gram matrices of the basis on the four quarters (they sum
@@ -312,6 +340,20 @@ pub fn visible_fraction(
     seed: u64,
     rays: &mut u64,
 ) -> Seen {
+    visible_fraction_over(bvh, a, None, b, n, seed, rays)
+}
+
+/// [`visible_fraction`] over the pairs whose point on `a` is not `covered`: the fraction of
+/// the light that reaches the exposed part of `a` ([`crate::cover`]).
+pub fn visible_fraction_over(
+    bvh: &Bvh,
+    a: Piece,
+    covered: Option<&Mask>,
+    b: Piece,
+    n: usize,
+    seed: u64,
+    rays: &mut u64,
+) -> Seen {
     let quads = bvh.quads();
     let (qa, qb) = (&quads[a.surface], &quads[b.surface]);
     let area = |p: &Piece, q: &Parallelogram| q.area * (p.s[1] - p.s[0]) * (p.t[1] - p.t[0]);
@@ -336,6 +378,9 @@ pub fn visible_fraction(
         let ta = a.t[0] + (a.t[1] - a.t[0]) * va;
         let sb = b.s[0] + (b.s[1] - b.s[0]) * (ib as f64 + rng.next_f64()) * cell;
         let tb = b.t[0] + (b.t[1] - b.t[0]) * (jb as f64 + rng.next_f64()) * cell;
+        if covered.is_some_and(|m| m.covered(sa, ta)) {
+            continue;
+        }
         let (x, y) = (qa.at(sa, ta), qb.at(sb, tb));
         let d = sub(y, x);
         let (ca, cb) = (dot(d, qa.n), -dot(d, qb.n));

@@ -632,6 +632,7 @@ pub fn solve(
     let residual = history.last().copied().unwrap_or(0.0);
     Ok(Solution {
         fields,
+        shown: None,
         emission,
         irradiance,
         basis_size: leaves * k,

@@ -8,6 +8,7 @@ use super::{Dense, Discretization, Layout, System};
 use crate::basis::legendre;
 use crate::bvh::Bvh;
 use crate::congruence::Congruence;
+use crate::cover::Mask;
 use crate::progress::{Cancelled, Phase, Progress};
 use crate::quadrature::Rule;
 use crate::scene::Quad;
@@ -86,11 +87,25 @@ impl Geometry {
     /// The visible fraction of the pair of pieces, 1 without rays when nothing can come
     /// between them; rays cast are added to `rays`.
     pub fn visibility(&self, a: Piece, b: Piece, seed: u64, grid: usize, rays: &mut u64) -> Seen {
+        self.visibility_over(a, None, b, seed, grid, rays)
+    }
+
+    /// [`Geometry::visibility`] over the exposed part of `a` only, where `covered` marks a
+    /// covered part of its surface ([`crate::cover`]).
+    pub fn visibility_over(
+        &self,
+        a: Piece,
+        covered: Option<&Mask>,
+        b: Piece,
+        seed: u64,
+        grid: usize,
+        rays: &mut u64,
+    ) -> Seen {
         let cand = &self.occluders[a.surface * self.len() + b.surface];
         if !visibility3d::any_occluder(&self.quads, a, b, cand) {
             return Seen::CLEAR;
         }
-        visibility3d::visible_fraction(&self.bvh, a, b, grid, seed, rays)
+        visibility3d::visible_fraction_over(&self.bvh, a, covered, b, grid, seed, rays)
     }
 }
 

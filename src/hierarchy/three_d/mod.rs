@@ -11,11 +11,19 @@
 //!
 //! (a Jacobi sweep of B = E + ρ K B in the multiresolution basis) to the solver's tolerance,
 //! then re-refines the links with the new B ("BF refinement") until no link changes.
+//!
+//! Where a solid stands on a surface ([`crate::cover`]), the elements across the outline of
+//! its foot are split to the finest level before any link is made, and every partly covered
+//! element holds the polynomial of its exposed part: links into it deliver the masked moments
+//! ∫ χ φ H (their blocks weighted by its masked Gram matrices and the visible fraction of its
+//! exposed part), push-pull turns them into that polynomial by G⁺, and the numbers reported
+//! count the covered part as B = E.
 
 pub mod refine;
 pub mod tree;
 
 use crate::basis::Filters;
+use crate::cover::{Exposure, Mask, Partial};
 use crate::field::{Field, Leaf};
 use crate::job::{JobError, Solution};
 use crate::progress::{Cancelled, Phase, Progress};
@@ -58,6 +66,8 @@ pub struct Hierarchy<'g> {
     pub hidden: Vec<(u32, u32, Factors)>,
     /// Kernel evaluations spent on link blocks so far.
     pub evaluations: std::sync::atomic::AtomicU64,
+    /// The covered part of each surface that a solid stands on ([`crate::cover`]).
+    pub masks: Vec<Option<Mask>>,
     pub elements: Vec<Element>,
     pub links: Vec<Link>,
     pub rays: u64,
@@ -65,7 +75,8 @@ pub struct Hierarchy<'g> {
 }
 
 impl<'g> Hierarchy<'g> {
-    /// Roots for every surface, with E projected; no links yet.
+    /// Roots for every surface, with E projected, split down to the finest level along the
+    /// outline of any covered part; no links yet.
     pub fn new(
         geo: &'g Geometry,
         quads: &'g [Quad],
@@ -78,6 +89,7 @@ impl<'g> Hierarchy<'g> {
             .iter()
             .flat_map(|q| q.material.emission)
             .fold(0.0, f64::max);
+        let masks = Mask::of_scene(&geo.quads, &geo.bvh, resolution);
         let elements = quads
             .iter()
             .enumerate()
@@ -98,10 +110,13 @@ impl<'g> Hierarchy<'g> {
                     e,
                     h: vec![[0.0; 3]; k * k],
                     detail: 0.0,
+                    exposure: masks[i]
+                        .as_ref()
+                        .map_or(Exposure::Open, |m| m.exposure(piece.s, piece.t, k)),
                 }
             })
             .collect();
-        Hierarchy {
+        let mut h = Hierarchy {
             geo,
             quads,
             filters: Filters::of_order(order),
@@ -128,11 +143,23 @@ impl<'g> Hierarchy<'g> {
             unit: geo.quads.iter().map(|q| q.diameter()).fold(0.0, f64::max) * (-32f64).exp2(),
             evaluations: std::sync::atomic::AtomicU64::new(0),
             hidden: Vec::new(),
+            masks,
             elements,
             links: Vec::new(),
             rays: 0,
             refinements: 0,
+        };
+        // an element across the outline keeps one polynomial on its exposed part, which the
+        // finest level confines to a strip along it
+        let mut open: Vec<u32> = (0..quads.len() as u32).collect();
+        while let Some(e) = open.pop() {
+            let el = &h.elements[e as usize];
+            if matches!(el.exposure, Exposure::Partial(_)) && el.level < h.max_level {
+                let first = h.split(e);
+                open.extend(first..first + 4);
+            }
         }
+        h
     }
 
     /// Links every pair of facing surfaces, refined against the current B.
@@ -164,9 +191,21 @@ impl<'g> Hierarchy<'g> {
     /// ‖B − P_e B‖² on e that sum minus ‖b_e‖²).
     fn measure_detail(&mut self, e: u32) -> [f64; 3] {
         let el = &self.elements[e as usize];
-        let own = el.b.iter().fold([0.0; 3], |a, c| {
-            [a[0] + c[0] * c[0], a[1] + c[1] * c[1], a[2] + c[2] * c[2]]
-        });
+        // on a partly covered element, the norm over its exposed part, bᵀ G b ([`cover`]):
+        // the fit there is the orthogonal projection for that inner product
+        let own = match &el.exposure {
+            Exposure::Open => el.b.iter().fold([0.0; 3], |a, c| {
+                [a[0] + c[0] * c[0], a[1] + c[1] * c[1], a[2] + c[2] * c[2]]
+            }),
+            Exposure::Covered => [0.0; 3],
+            Exposure::Partial(p) => {
+                let mut g = vec![[0.0; 3]; el.b.len()];
+                Partial::apply(&p.gram, &el.b, &mut g);
+                el.b.iter().zip(&g).fold([0.0; 3], |a, (b, g)| {
+                    [a[0] + b[0] * g[0], a[1] + b[1] * g[1], a[2] + b[2] * g[2]]
+                })
+            }
+        };
         if el.is_leaf() {
             self.elements[e as usize].detail = 0.0;
             return own;
@@ -295,9 +334,18 @@ impl<'g> Hierarchy<'g> {
         let kk = self.k * self.k;
         let mut total = [[0.0; 3]; MAX_KK];
         let el = &self.elements[e as usize];
-        for i in 0..kk {
-            for c in 0..3 {
-                total[i][c] = el.h[i][c] + down[i][c];
+        // H of the links into e, as the polynomial of its exposed part (a covered element
+        // receives nothing), plus H of the ancestors'
+        match &el.exposure {
+            Exposure::Open => total[..kk].copy_from_slice(&el.h),
+            Exposure::Covered => {}
+            Exposure::Partial(p) => Partial::apply(&p.inverse, &el.h, &mut total[..kk]),
+        }
+        if el.exposure != Exposure::Covered {
+            for i in 0..kk {
+                for c in 0..3 {
+                    total[i][c] += down[i][c];
+                }
             }
         }
         if el.is_leaf() {
@@ -318,23 +366,36 @@ impl<'g> Hierarchy<'g> {
         let first = el.children;
         let mut b = [[0.0; 3]; MAX_KK];
         let mut child_down = [[0.0; 3]; MAX_KK];
+        let mut masked = [[0.0; 3]; MAX_KK];
         for i in 0..4u32 {
             let (dt, ds) = ((i / 2) as usize, (i % 2) as usize);
             push(self.filters, &total[..kk], dt, ds, &mut child_down[..kk]);
             self.push_pull(first + i, &child_down[..kk], change, norm);
-            pull(
-                self.filters,
-                &self.elements[(first + i) as usize].b,
-                dt,
-                ds,
-                &mut b[..kk],
-            );
+            let child = &self.elements[(first + i) as usize];
+            // a partly covered parent projects its children's B on its exposed part: the
+            // parent's G⁺ of the sum of the children's masked moments G_c b_c
+            let moments = match (&self.elements[e as usize].exposure, &child.exposure) {
+                (Exposure::Partial(_), Exposure::Partial(p)) => {
+                    Partial::apply(&p.gram, &child.b, &mut masked[..kk]);
+                    &masked[..kk]
+                }
+                (Exposure::Partial(_), Exposure::Covered) => {
+                    masked[..kk].fill([0.0; 3]);
+                    &masked[..kk]
+                }
+                _ => &child.b[..],
+            };
+            pull(self.filters, moments, dt, ds, &mut b[..kk]);
+        }
+        if let Exposure::Partial(p) = &self.elements[e as usize].exposure {
+            Partial::apply(&p.inverse, &b[..kk], &mut masked[..kk]);
+            b[..kk].copy_from_slice(&masked[..kk]);
         }
         self.elements[e as usize].b.copy_from_slice(&b[..kk]);
     }
 
     /// Fields of B, E and H over each surface, from the leaves.
-    pub fn fields(&self, pick: impl Fn(&Element) -> &Vec<Rgb>) -> Vec<Field> {
+    pub fn fields(&self, pick: impl Fn(&Element) -> Vec<Rgb>) -> Vec<Field> {
         let res = 1usize << self.max_level;
         let order = self.k - 1;
         (0..self.quads.len())
@@ -346,7 +407,7 @@ impl<'g> Hierarchy<'g> {
             .collect()
     }
 
-    fn collect_leaves(&self, e: u32, pick: &impl Fn(&Element) -> &Vec<Rgb>, out: &mut Vec<Leaf>) {
+    fn collect_leaves(&self, e: u32, pick: &impl Fn(&Element) -> Vec<Rgb>, out: &mut Vec<Leaf>) {
         let el = &self.elements[e as usize];
         if el.is_leaf() {
             let f = 1.0 / el.area.sqrt();
@@ -465,9 +526,18 @@ pub fn solve(
     }
     timings.insert("refinement".into(), refine_ms);
     timings.insert("solve".into(), solve_ms);
-    let fields = h.fields(|e| &e.b);
-    let emission = h.fields(|e| &e.e);
-    let irradiance = h.fields(|e| &e.h);
+    // the numbers count a covered part as B = E, H = 0; the images show the exposed part's
+    // polynomial, up to the outline
+    let fields = h.fields(|e| e.reported(&e.b, &e.e));
+    let shown = h.masks.iter().any(Option::is_some).then(|| {
+        h.fields(|e| match e.exposure {
+            Exposure::Covered => e.e.clone(),
+            _ => e.b.clone(),
+        })
+    });
+    let emission = h.fields(|e| e.e.clone());
+    let zero = vec![[0.0; 3]; h.k * h.k];
+    let irradiance = h.fields(|e| e.reported(&e.h, &zero));
     let kk = h.k * h.k;
     let mut sorted: Vec<f64> = h
         .links
@@ -495,6 +565,7 @@ pub fn solve(
         .collect();
     Ok(Solution {
         fields,
+        shown,
         emission,
         irradiance,
         basis_size: h.elements.len() * kk,

@@ -25,6 +25,7 @@
 use super::tree::{push, Element, NONE};
 use super::Hierarchy;
 use crate::congruence::Congruence;
+use crate::cover::Exposure;
 use crate::progress::{Cancelled, Progress};
 use crate::projection::three_d::VISIBILITY_GRID;
 use crate::space::quad_quad;
@@ -141,7 +142,12 @@ impl Hierarchy<'_> {
                     &mut e_coeffs,
                 );
                 let peak = peak_emission(quad, piece);
+                let exposure = match (&parent.exposure, &self.masks[p.surface]) {
+                    (Exposure::Partial(_), Some(m)) => m.exposure(piece.s, piece.t, self.k),
+                    (e, _) => e.clone(),
+                };
                 self.elements.push(Element {
+                    exposure,
                     peak,
                     piece,
                     level: parent.level + 1,
@@ -213,7 +219,10 @@ impl Hierarchy<'_> {
             .level
             .min(self.elements[s as usize].level);
         let grid = VISIBILITY_GRID << 2u32.saturating_sub(top);
-        let v = self.geo.visibility(pr, ps, seed, grid, &mut rays);
+        let mask = self.masks[pr.surface].as_ref();
+        let v = self
+            .geo
+            .visibility_over(pr, mask, ps, seed, grid, &mut rays);
         // partly visible, or hidden as far as the few sampled rays can tell (a big pair's
         // light may pass through a gap none of them found): no smoothness credit
         let x = Factors {
@@ -330,7 +339,10 @@ impl Hierarchy<'_> {
             .zip(classes.iter().zip(slots))
             .map(|(&(recv, src, factors, seen), (class, slot))| {
                 let mut block = class.from_class(&blocks[slot], k);
-                seen.weigh(&quarters, &mut block);
+                match &self.elements[recv as usize].exposure {
+                    Exposure::Partial(p) => seen.weigh_masked(p, k, &mut block),
+                    _ => seen.weigh(&quarters, &mut block),
+                }
                 Link {
                     recv,
                     src,

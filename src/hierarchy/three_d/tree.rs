@@ -8,6 +8,7 @@
 //! is the transpose ("push", exact).
 
 use crate::basis::Filters;
+use crate::cover::Exposure;
 use crate::scene::Rgb;
 use crate::visibility3d::Piece;
 
@@ -33,11 +34,37 @@ pub struct Element {
     /// (largest channel), from the leaves below: what a link that uses this element as a
     /// source leaves out.
     pub detail: f64,
+    /// How much of it a solid standing on the surface leaves exposed ([`crate::cover`]).
+    /// On a partly covered element, `b` and `h` are the polynomials of the exposed part
+    /// (see [`Element::reported`]).
+    pub exposure: Exposure,
 }
 
 impl Element {
     pub fn is_leaf(&self) -> bool {
         self.children == NONE
+    }
+
+    /// The projection of the whole element's B (or H, with `e` = 0) from the exposed part's
+    /// polynomial `v`: E on the covered part, `v` on the rest, i.e. e + G (v − e).
+    pub fn reported(&self, v: &[Rgb], e: &[Rgb]) -> Vec<Rgb> {
+        match &self.exposure {
+            Exposure::Open => v.to_vec(),
+            Exposure::Covered => e.to_vec(),
+            Exposure::Partial(p) => {
+                let d: Vec<Rgb> = v
+                    .iter()
+                    .zip(e)
+                    .map(|(v, e)| [v[0] - e[0], v[1] - e[1], v[2] - e[2]])
+                    .collect();
+                let mut out = vec![[0.0; 3]; v.len()];
+                crate::cover::Partial::apply(&p.gram, &d, &mut out);
+                out.iter_mut().zip(e).for_each(|(o, e)| {
+                    (0..3).for_each(|c| o[c] += e[c]);
+                });
+                out
+            }
+        }
     }
     /// The brightness the oracle weighs a transfer by: the mean of B (largest channel) plus
     /// the peak emission inside, so that a small light on a large surface is not averaged away.

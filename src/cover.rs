@@ -1,0 +1,442 @@
+//! The covered part of a surface: where a closed solid rests on it (a box on a floor), the
+//! surface sees only the inside of the solid. No light arrives there and none leaves, so
+//! B = E on it, and the radiosity just outside jumps from that to the lit floor in front of
+//! the box's foot.
+//!
+//! One polynomial on an element that straddles the foot's outline fits both sides at once:
+//! it darkens the floor next to the box, and with it the box's faces, which see mostly that
+//! strip of floor. The hierarchy ([`crate::hierarchy::three_d`]) instead fits each such
+//! element on its exposed part only, as in a cut-cell (fictitious domain) Galerkin method:
+//! with χ the exposed part's indicator, the element's masked Gram matrix
+//! G_ac = ∫ χ φ_a φ_c (here, over the element's unit square) turns the irradiance that
+//! arrives, h_a = ∫ χ φ_a H, into the polynomial that matches H on the exposed part,
+//! p = G⁺ h, and a polynomial p on the exposed part back into the projection of χ p, G p.
+//!
+//! The mask is found by probing, not from a list of solids: a point is covered when every
+//! one of five rays from it over its hemisphere first meets the back of a surface. That is
+//! the inside of a closed solid: a ray from the floor in front of a box meets the ceiling
+//! or the front of the box. Surfaces are probed only where another surface stands on them,
+//! away from their edges (the walls of a room meet only at edges). Each cell of the
+//! hierarchy's finest level is probed at its corners and centre; the cells where the
+//! outline passes, and their neighbours, are resolved on a [`SUB`] × [`SUB`] grid.
+
+use crate::bvh::Bvh;
+use crate::space::{add, cross, dot, normalize, scale, Parallelogram};
+use rayon::prelude::*;
+
+/// Sub-cells per side of a finest cell that the outline of a covered part crosses.
+pub const SUB: usize = 16;
+
+/// Relative size below which an eigenvalue of a masked Gram matrix counts as zero.
+pub const CUTOFF: f64 = 1e-3;
+
+/// What lies under one finest cell.
+#[derive(Debug, Clone, PartialEq)]
+enum Cell {
+    Open,
+    Covered,
+    /// Covered sub-cells, bit `j * SUB + i` for sub-cell (i along s, j along t).
+    Cut(Box<[u64; SUB * SUB / 64]>),
+}
+
+/// The covered part of one surface on a `res × res` grid of its (s, t) square.
+#[derive(Debug, Clone)]
+pub struct Mask {
+    res: usize,
+    /// `[t][s]`.
+    cells: Vec<Cell>,
+}
+
+/// How much of an element is exposed, and the masked matrices of its polynomials.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Exposure {
+    Open,
+    Covered,
+    Partial(Box<Partial>),
+}
+
+/// The masked matrices of an element that is partly covered (tensor Legendre, `k² × k²`,
+/// row-major, on the element's unit square).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Partial {
+    /// The exposed share of the area.
+    pub fraction: f64,
+    /// G = ∫ χ φ_a φ_c.
+    pub gram: Vec<f64>,
+    /// G⁺, its pseudo-inverse (eigenvalues below [`CUTOFF`] of the largest left out: the
+    /// polynomials that nearly vanish on a thin exposed sliver are not determined by it).
+    pub inverse: Vec<f64>,
+    /// ∫_quarter χ φ_a φ_c for the quarters `ds + 2 dt`: G split by the element's quarters,
+    /// for a visible fraction that is a step over them ([`crate::visibility3d::Seen`]).
+    pub quarters: [Vec<f64>; 4],
+}
+
+impl Partial {
+    /// y = M x for one of the `k² × k²` matrices, per channel.
+    pub fn apply(m: &[f64], x: &[[f64; 3]], y: &mut [[f64; 3]]) {
+        let kk = x.len();
+        for (a, out) in y.iter_mut().enumerate() {
+            *out = [0.0; 3];
+            for (c, v) in x.iter().enumerate() {
+                let w = m[a * kk + c];
+                (0..3).for_each(|ch| out[ch] += w * v[ch]);
+            }
+        }
+    }
+}
+
+impl Mask {
+    /// The masks of every surface of the scene that something stands on (`None` for the
+    /// rest, and where nothing turned out covered), at `res` finest cells per side.
+    pub fn of_scene(quads: &[Parallelogram], bvh: &Bvh, res: usize) -> Vec<Option<Mask>> {
+        (0..quads.len())
+            .map(|i| {
+                stood_on(quads, i)
+                    .then(|| Mask::probe(quads, bvh, i, res))
+                    .filter(|m| m.cells.iter().any(|c| *c != Cell::Open))
+            })
+            .collect()
+    }
+
+    fn probe(quads: &[Parallelogram], bvh: &Bvh, surface: usize, res: usize) -> Mask {
+        let covered = |s: f64, t: f64| covered_at(quads, bvh, surface, s, t);
+        let h = 1.0 / res as f64;
+        let corners: Vec<bool> = (0..(res + 1) * (res + 1))
+            .into_par_iter()
+            .map(|i| covered((i % (res + 1)) as f64 * h, (i / (res + 1)) as f64 * h))
+            .collect();
+        let centres: Vec<bool> = (0..res * res)
+            .into_par_iter()
+            .map(|i| covered(((i % res) as f64 + 0.5) * h, ((i / res) as f64 + 0.5) * h))
+            .collect();
+        let mixed = |cs: usize, ct: usize| {
+            let c = centres[ct * res + cs];
+            [(0, 0), (1, 0), (0, 1), (1, 1)]
+                .iter()
+                .any(|&(a, b)| corners[(ct + b) * (res + 1) + cs + a] != c)
+        };
+        // the cells the outline crosses, and their neighbours (an outline may clip a cell
+        // between its probes)
+        let mut resolve = vec![false; res * res];
+        for ct in 0..res {
+            for cs in 0..res {
+                if mixed(cs, ct) {
+                    for dt in ct.saturating_sub(1)..(ct + 2).min(res) {
+                        for ds in cs.saturating_sub(1)..(cs + 2).min(res) {
+                            resolve[dt * res + ds] = true;
+                        }
+                    }
+                }
+            }
+        }
+        let cells = (0..res * res)
+            .into_par_iter()
+            .map(|i| {
+                let (cs, ct) = (i % res, i / res);
+                if !resolve[i] {
+                    return if centres[i] {
+                        Cell::Covered
+                    } else {
+                        Cell::Open
+                    };
+                }
+                let mut bits = [0u64; SUB * SUB / 64];
+                let mut n = 0;
+                for j in 0..SUB {
+                    for k in 0..SUB {
+                        let s = (cs as f64 + (k as f64 + 0.5) / SUB as f64) * h;
+                        let t = (ct as f64 + (j as f64 + 0.5) / SUB as f64) * h;
+                        if covered(s, t) {
+                            let b = j * SUB + k;
+                            bits[b / 64] |= 1 << (b % 64);
+                            n += 1;
+                        }
+                    }
+                }
+                match n {
+                    0 => Cell::Open,
+                    n if n == SUB * SUB => Cell::Covered,
+                    _ => Cell::Cut(Box::new(bits)),
+                }
+            })
+            .collect();
+        Mask { res, cells }
+    }
+
+    /// Whether the point (s, t) of the surface is covered (to the sub-cell grid).
+    pub fn covered(&self, s: f64, t: f64) -> bool {
+        let r = self.res as f64;
+        let (fs, ft) = ((s * r).clamp(0.0, r - 1e-9), (t * r).clamp(0.0, r - 1e-9));
+        let (cs, ct) = (fs as usize, ft as usize);
+        match &self.cells[ct * self.res + cs] {
+            Cell::Open => false,
+            Cell::Covered => true,
+            Cell::Cut(bits) => {
+                let i = (((fs - cs as f64) * SUB as f64) as usize).min(SUB - 1);
+                let j = (((ft - ct as f64) * SUB as f64) as usize).min(SUB - 1);
+                is_set(bits, j * SUB + i)
+            }
+        }
+    }
+
+    /// The exposure of the piece `[s0, s1] × [t0, t1]` (aligned to the grid) for tensor
+    /// Legendre polynomials of `k` terms per direction.
+    pub fn exposure(&self, s: [f64; 2], t: [f64; 2], k: usize) -> Exposure {
+        let r = self.res as f64;
+        let idx = |x: f64| (x * r).round() as usize;
+        let (s0, s1, t0, t1) = (idx(s[0]), idx(s[1]), idx(t[0]), idx(t[1]));
+        let (mut open, mut covered) = (0, 0);
+        for ct in t0..t1 {
+            for cs in s0..s1 {
+                match self.cells[ct * self.res + cs] {
+                    Cell::Open => open += 1,
+                    Cell::Covered => covered += 1,
+                    Cell::Cut(_) => {}
+                }
+            }
+        }
+        let total = (s1 - s0) * (t1 - t0);
+        if open == total {
+            return Exposure::Open;
+        }
+        if covered == total {
+            return Exposure::Covered;
+        }
+        // ∫ χ φ_a φ_c over the piece's unit square: a sum of exact integrals over the open
+        // cells and runs of open sub-cells, each a rectangle u × v of that square
+        let kk = k * k;
+        let mut quarters: [Vec<f64>; 4] = std::array::from_fn(|_| vec![0.0; kk * kk]);
+        let (ws, wt) = ((s1 - s0) as f64, (t1 - t0) as f64);
+        let mut add_rect = |u: [f64; 2], v: [f64; 2]| {
+            let (u, v) = ([u[0] / ws, u[1] / ws], [v[0] / wt, v[1] / wt]);
+            let quarter = usize::from(u[0] + u[1] > 1.0) + 2 * usize::from(v[0] + v[1] > 1.0);
+            let (ms, mt) = (products(u, k), products(v, k));
+            let m = &mut quarters[quarter];
+            for a in 0..kk {
+                for c in 0..kk {
+                    m[a * kk + c] += mt[(a / k) * k + c / k] * ms[(a % k) * k + c % k];
+                }
+            }
+        };
+        let sub = 1.0 / SUB as f64;
+        for ct in t0..t1 {
+            for cs in s0..s1 {
+                let (u0, v0) = ((cs - s0) as f64, (ct - t0) as f64);
+                match &self.cells[ct * self.res + cs] {
+                    Cell::Open => add_rect([u0, u0 + 1.0], [v0, v0 + 1.0]),
+                    Cell::Covered => {}
+                    Cell::Cut(bits) => {
+                        for j in 0..SUB {
+                            let open = |i: usize| !is_set(bits, j * SUB + i);
+                            let mut i = 0;
+                            while i < SUB {
+                                if !open(i) {
+                                    i += 1;
+                                    continue;
+                                }
+                                let start = i;
+                                while i < SUB && open(i) {
+                                    i += 1;
+                                }
+                                add_rect(
+                                    [u0 + start as f64 * sub, u0 + i as f64 * sub],
+                                    [v0 + j as f64 * sub, v0 + (j + 1) as f64 * sub],
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let mut gram = vec![0.0; kk * kk];
+        for m in &quarters {
+            gram.iter_mut().zip(m).for_each(|(g, m)| *g += m);
+        }
+        // φ_0 = 1 on the unit square: G_00 is the exposed area
+        let fraction = gram[0];
+        if fraction <= 0.0 {
+            return Exposure::Covered;
+        }
+        Exposure::Partial(Box::new(Partial {
+            fraction,
+            inverse: pseudo_inverse(&gram, kk),
+            gram,
+            quarters,
+        }))
+    }
+}
+
+fn is_set(bits: &[u64; SUB * SUB / 64], b: usize) -> bool {
+    bits[b / 64] >> (b % 64) & 1 == 1
+}
+
+/// ∫_u φ_p φ_q over an interval of [0, 1], exactly (Gauss with k points), `[p][q]`.
+fn products(u: [f64; 2], k: usize) -> Vec<f64> {
+    let rule = crate::quadrature::Rule::for_degree(2 * (k - 1));
+    let mut phi = vec![0.0; k];
+    let mut m = vec![0.0; k * k];
+    for (x, w) in rule.mapped(u[0], u[1]) {
+        crate::basis::legendre::legendre(x, &mut phi);
+        for p in 0..k {
+            for q in 0..k {
+                m[p * k + q] += w * phi[p] * phi[q];
+            }
+        }
+    }
+    m
+}
+
+/// The pseudo-inverse of a symmetric positive semi-definite `n × n` matrix.
+fn pseudo_inverse(g: &[f64], n: usize) -> Vec<f64> {
+    let eig = nalgebra::SymmetricEigen::new(nalgebra::DMatrix::from_row_slice(n, n, g));
+    let top = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
+    let mut out = vec![0.0; n * n];
+    for (l, v) in eig.eigenvalues.iter().zip(eig.eigenvectors.column_iter()) {
+        if *l <= CUTOFF * top {
+            continue;
+        }
+        for a in 0..n {
+            for c in 0..n {
+                out[a * n + c] += v[a] * v[c] / l;
+            }
+        }
+    }
+    out
+}
+
+/// Whether another surface stands on surface `i`: one of its edges lies in i's plane and
+/// inside it, away from i's own edges.
+fn stood_on(quads: &[Parallelogram], i: usize) -> bool {
+    let q = &quads[i];
+    let tol = 1e-9 * q.diameter();
+    let inside = |x: f64| (1e-6..1.0 - 1e-6).contains(&x);
+    quads.iter().enumerate().any(|(j, o)| {
+        let c = o.piece([0.0, 1.0], [0.0, 1.0]);
+        j != i
+            && (0..4).any(|e| {
+                let (a, b) = (c[e], c[(e + 1) % 4]);
+                let (s, t) = q.params(scale(add(a, b), 0.5));
+                q.side(a).abs() < tol && q.side(b).abs() < tol && inside(s) && inside(t)
+            })
+    })
+}
+
+/// Whether the point (s, t) of surface `i` is covered: five rays over its hemisphere all
+/// meet the back of a surface first.
+fn covered_at(quads: &[Parallelogram], bvh: &Bvh, i: usize, s: f64, t: f64) -> bool {
+    let q = &quads[i];
+    let n = q.n;
+    let a = normalize(q.e1);
+    let b = cross(n, a);
+    let x = add(q.at(s, t), scale(n, 1e-7 * q.diameter()));
+    let dirs = [
+        n,
+        normalize(add(n, scale(a, 0.7))),
+        normalize(add(n, scale(a, -0.7))),
+        normalize(add(n, scale(b, 0.7))),
+        normalize(add(n, scale(b, -0.7))),
+    ];
+    dirs.iter().all(|&d| {
+        bvh.first_hit(x, d, 0.0, f64::INFINITY, [i, usize::MAX])
+            .is_some_and(|h| dot(d, quads[h.surface].n) > 0.0)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A floor [0, 8]² with an axis-aligned box (five faces, no bottom, 1 high) on it.
+    fn floor_with_box(lo: [f64; 2], hi: [f64; 2]) -> Vec<Parallelogram> {
+        let (x0, x1, z0, z1, y) = (lo[0], hi[0], lo[1], hi[1], 1.0);
+        let p = |c: [[f64; 3]; 4]| Parallelogram::new(&c);
+        vec![
+            // floor, normal +y: s along z, t along x
+            p([
+                [0.0, 0.0, 0.0],
+                [0.0, 0.0, 8.0],
+                [8.0, 0.0, 8.0],
+                [8.0, 0.0, 0.0],
+            ]),
+            p([[x0, y, z0], [x0, y, z1], [x1, y, z1], [x1, y, z0]]),
+            p([[x0, 0.0, z0], [x0, y, z0], [x1, y, z0], [x1, 0.0, z0]]),
+            p([[x0, 0.0, z1], [x1, 0.0, z1], [x1, y, z1], [x0, y, z1]]),
+            p([[x0, 0.0, z0], [x0, 0.0, z1], [x0, y, z1], [x0, y, z0]]),
+            p([[x1, 0.0, z0], [x1, y, z0], [x1, y, z1], [x1, 0.0, z1]]),
+        ]
+    }
+
+    #[test]
+    fn the_foot_of_a_box_is_covered_and_nothing_else() {
+        // the foot [2, 5] × [3, 4.5] (x × z) of an [0, 8]² floor
+        let quads = floor_with_box([2.0, 3.0], [5.0, 4.5]);
+        for q in &quads[1..] {
+            let out = crate::space::sub(q.at(0.5, 0.5), [3.5, 0.5, 3.75]);
+            assert!(dot(q.n, out) > 0.0, "the box's faces point out");
+        }
+        let bvh = Bvh::occluders(&quads);
+        let masks = Mask::of_scene(&quads, &bvh, 8);
+        assert!(masks[1..].iter().all(Option::is_none));
+        let m = masks[0].as_ref().expect("the floor is stood on");
+        assert!(m.covered(3.5 / 8.0, 3.0 / 8.0));
+        assert!(!m.covered(2.9 / 8.0, 3.0 / 8.0));
+        assert!(!m.covered(3.5 / 8.0, 5.1 / 8.0));
+        match m.exposure([0.0, 1.0], [0.0, 1.0], 1) {
+            Exposure::Partial(p) => {
+                assert!(
+                    (p.fraction - (1.0 - 4.5 / 64.0)).abs() < 1e-12,
+                    "{}",
+                    p.fraction
+                )
+            }
+            e => panic!("{e:?}"),
+        }
+        assert_eq!(m.exposure([0.375, 0.5], [0.25, 0.5], 2), Exposure::Covered);
+        assert_eq!(m.exposure([0.0, 0.25], [0.0, 0.25], 2), Exposure::Open);
+    }
+
+    #[test]
+    fn masked_grams_are_the_integrals_over_the_exposed_part() {
+        // the foot's edge z = 4.5 halves the finest cell z ∈ [4, 5], x ∈ [3, 4]
+        let quads = floor_with_box([2.0, 3.0], [5.0, 4.5]);
+        let bvh = Bvh::occluders(&quads);
+        let m = Mask::of_scene(&quads, &bvh, 8).remove(0).expect("mask");
+        for k in 1..=4 {
+            let Exposure::Partial(p) = m.exposure([0.5, 0.625], [0.375, 0.5], k) else {
+                panic!("cut")
+            };
+            // covered for s < ½ of the cell: G = (∫_½¹ φ_p φ_q ds) ⊗ I
+            let half = products([0.5, 1.0], k);
+            let kk = k * k;
+            for a in 0..kk {
+                for c in 0..kk {
+                    let same_t = f64::from(u8::from(a / k == c / k));
+                    let want = half[(a % k) * k + c % k] * same_t;
+                    assert!((p.gram[a * kk + c] - want).abs() < 1e-13, "k={k}");
+                }
+            }
+            assert!((p.fraction - 0.5).abs() < 1e-14);
+            // a polynomial on the exposed half is recovered from its masked moments: exactly
+            // while G is well conditioned (k ≤ 3), else up to what the pseudo-inverse leaves
+            // out, whose norm on the exposed part is below √CUTOFF of the whole
+            let poly: Vec<[f64; 3]> = (0..kk).map(|i| [1.0 - 0.3 * i as f64; 3]).collect();
+            let mut moments = vec![[0.0; 3]; kk];
+            let mut back = vec![[0.0; 3]; kk];
+            Partial::apply(&p.gram, &poly, &mut moments);
+            Partial::apply(&p.inverse, &moments, &mut back);
+            let diff: Vec<[f64; 3]> = back
+                .iter()
+                .zip(&poly)
+                .map(|(a, b)| [a[0] - b[0]; 3])
+                .collect();
+            if k <= 3 {
+                assert!(diff.iter().all(|d| d[0].abs() < 1e-9), "k={k}: {diff:?}");
+            }
+            let mut g_diff = vec![[0.0; 3]; kk];
+            Partial::apply(&p.gram, &diff, &mut g_diff);
+            let on_exposed: f64 = diff.iter().zip(&g_diff).map(|(a, b)| a[0] * b[0]).sum();
+            let norm: f64 = poly.iter().map(|v| v[0] * v[0]).sum();
+            assert!(on_exposed.sqrt() < CUTOFF.sqrt() * norm.sqrt(), "k={k}");
+        }
+    }
+}
