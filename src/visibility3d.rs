@@ -226,43 +226,40 @@ impl Seen {
             block.iter_mut().for_each(|x| *x *= self.whole);
             return;
         }
-        let kk = quarters.k * quarters.k;
-        let mut w = vec![0.0; kk * kk];
-        for (m, &v) in quarters.m.iter().zip(&self.quarters) {
-            w.iter_mut().zip(m).for_each(|(w, m)| *w += v * m);
-        }
-        let old = block.to_vec();
-        for a in 0..kk {
-            for b in 0..kk {
-                block[a * kk + b] = (0..kk).map(|c| w[a * kk + c] * old[c * kk + b]).sum();
-            }
-        }
+        self.apply_step(&quarters.m, quarters.k, block);
     }
-}
 
-impl Seen {
     /// [`Seen::weigh`] for a partly covered receiver: W = Σ_quarters V_quarter G_quarter
     /// with the masked Gram matrices of its quarters ([`Partial`]), which turns the block
     /// into the moments ∫ χ φ_a H of the exposed part. The fractions are those of the
-    /// exposed part ([`visible_fraction_over`]).
+    /// exposed part ([`visible_fraction_over`]); uniform ones make W = V G.
     pub fn weigh_masked(&self, partial: &Partial, k: usize, block: &mut [f64]) {
-        let kk = k * k;
-        let uniform = k == 1 || self.quarters.iter().all(|&v| v == self.whole);
-        let mut w = vec![0.0; kk * kk];
-        if uniform {
-            w.iter_mut()
-                .zip(&partial.gram)
-                .for_each(|(w, g)| *w = self.whole * g);
-        } else {
-            for (m, &v) in partial.quarters.iter().zip(&self.quarters) {
-                w.iter_mut().zip(m).for_each(|(w, m)| *w += v * m);
-            }
+        if k == 1 || self.quarters.iter().all(|&v| v == self.whole) {
+            let kk = k * k;
+            let w: Vec<f64> = partial.gram.iter().map(|g| self.whole * g).collect();
+            left_multiply(&w, kk, block);
+            return;
         }
-        let old = block.to_vec();
-        for a in 0..kk {
-            for b in 0..kk {
-                block[a * kk + b] = (0..kk).map(|c| w[a * kk + c] * old[c * kk + b]).sum();
-            }
+        self.apply_step(&partial.quarters, k, block);
+    }
+
+    /// block ← (Σ_quarters V_quarter M_quarter) · block.
+    fn apply_step(&self, m: &[Vec<f64>; 4], k: usize, block: &mut [f64]) {
+        let kk = k * k;
+        let mut w = vec![0.0; kk * kk];
+        for (m, &v) in m.iter().zip(&self.quarters) {
+            w.iter_mut().zip(m).for_each(|(w, m)| *w += v * m);
+        }
+        left_multiply(&w, kk, block);
+    }
+}
+
+/// block ← W · block for `kk × kk` row-major matrices.
+fn left_multiply(w: &[f64], kk: usize, block: &mut [f64]) {
+    let old = block.to_vec();
+    for a in 0..kk {
+        for b in 0..kk {
+            block[a * kk + b] = (0..kk).map(|c| w[a * kk + c] * old[c * kk + b]).sum();
         }
     }
 }
