@@ -20,6 +20,7 @@
 //! hierarchy's finest level is probed at its corners and centre; the cells where the
 //! outline passes, and their neighbours, are resolved on a [`SUB`] × [`SUB`] grid.
 
+use crate::basis::legendre::interval_gram;
 use crate::bvh::Bvh;
 use crate::space::{add, cross, dot, normalize, scale, Parallelogram};
 use rayon::prelude::*;
@@ -59,8 +60,6 @@ pub enum Exposure {
 /// row-major, on the element's unit square).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Partial {
-    /// The exposed share of the area.
-    pub fraction: f64,
     /// G = ∫ χ φ_a φ_c.
     pub gram: Vec<f64>,
     /// G⁺, its pseudo-inverse (eigenvalues below [`CUTOFF`] of the largest left out: the
@@ -72,6 +71,11 @@ pub struct Partial {
 }
 
 impl Partial {
+    /// The exposed share of the area: G_00, as φ_0 = 1 on the unit square.
+    pub fn fraction(&self) -> f64 {
+        self.gram[0]
+    }
+
     /// y = M x for one of the `k² × k²` matrices, per channel.
     pub fn apply(m: &[f64], x: &[[f64; 3]], y: &mut [[f64; 3]]) {
         let kk = x.len();
@@ -210,7 +214,7 @@ impl Mask {
         let mut add_rect = |u: [f64; 2], v: [f64; 2]| {
             let (u, v) = ([u[0] / ws, u[1] / ws], [v[0] / wt, v[1] / wt]);
             let quarter = usize::from(u[0] + u[1] > 1.0) + 2 * usize::from(v[0] + v[1] > 1.0);
-            let (ms, mt) = (products(u, k), products(v, k));
+            let (ms, mt) = (interval_gram(u, k), interval_gram(v, k));
             let m = &mut quarters[quarter];
             for a in 0..kk {
                 for c in 0..kk {
@@ -253,12 +257,10 @@ impl Mask {
             gram.iter_mut().zip(m).for_each(|(g, m)| *g += m);
         }
         // φ_0 = 1 on the unit square: G_00 is the exposed area
-        let fraction = gram[0];
-        if fraction <= 0.0 {
+        if gram[0] <= 0.0 {
             return Exposure::Covered;
         }
         Exposure::Partial(Box::new(Partial {
-            fraction,
             inverse: pseudo_inverse(&gram, kk),
             gram,
             quarters,
@@ -268,22 +270,6 @@ impl Mask {
 
 fn is_set(bits: &[u64; SUB * SUB / 64], b: usize) -> bool {
     bits[b / 64] >> (b % 64) & 1 == 1
-}
-
-/// ∫_u φ_p φ_q over an interval of [0, 1], exactly (Gauss with k points), `[p][q]`.
-fn products(u: [f64; 2], k: usize) -> Vec<f64> {
-    let rule = crate::quadrature::Rule::for_degree(2 * (k - 1));
-    let mut phi = vec![0.0; k];
-    let mut m = vec![0.0; k * k];
-    for (x, w) in rule.mapped(u[0], u[1]) {
-        crate::basis::legendre::legendre(x, &mut phi);
-        for p in 0..k {
-            for q in 0..k {
-                m[p * k + q] += w * phi[p] * phi[q];
-            }
-        }
-    }
-    m
 }
 
 /// The pseudo-inverse of a symmetric positive semi-definite `n × n` matrix.
@@ -384,9 +370,9 @@ mod tests {
         match m.exposure([0.0, 1.0], [0.0, 1.0], 1) {
             Exposure::Partial(p) => {
                 assert!(
-                    (p.fraction - (1.0 - 4.5 / 64.0)).abs() < 1e-12,
+                    (p.fraction() - (1.0 - 4.5 / 64.0)).abs() < 1e-12,
                     "{}",
-                    p.fraction
+                    p.fraction()
                 )
             }
             e => panic!("{e:?}"),
@@ -406,7 +392,7 @@ mod tests {
                 panic!("cut")
             };
             // covered for s < ½ of the cell: G = (∫_½¹ φ_p φ_q ds) ⊗ I
-            let half = products([0.5, 1.0], k);
+            let half = interval_gram([0.5, 1.0], k);
             let kk = k * k;
             for a in 0..kk {
                 for c in 0..kk {
@@ -415,7 +401,7 @@ mod tests {
                     assert!((p.gram[a * kk + c] - want).abs() < 1e-13, "k={k}");
                 }
             }
-            assert!((p.fraction - 0.5).abs() < 1e-14);
+            assert!((p.fraction() - 0.5).abs() < 1e-14);
             // a polynomial on the exposed half is recovered from its masked moments: exactly
             // while G is well conditioned (k ≤ 3), else up to what the pseudo-inverse leaves
             // out, whose norm on the exposed part is below √CUTOFF of the whole

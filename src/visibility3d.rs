@@ -276,21 +276,8 @@ pub struct Quarters {
 
 impl Quarters {
     pub fn new(k: usize) -> Quarters {
-        // ∫ φ_p φ_q over [0, ½] and over [½, 1], exactly by Gauss
-        let rule = crate::quadrature::Rule::for_degree(2 * (k - 1));
-        let mut phi = vec![0.0; k];
-        let half = [[0.0, 0.5], [0.5, 1.0]].map(|[lo, hi]| {
-            let mut m = vec![0.0; k * k];
-            for (x, w) in rule.mapped(lo, hi) {
-                crate::basis::legendre::legendre(x, &mut phi);
-                for p in 0..k {
-                    for q in 0..k {
-                        m[p * k + q] += w * phi[p] * phi[q];
-                    }
-                }
-            }
-            m
-        });
+        // ∫ φ_p φ_q over [0, ½] and over [½, 1]
+        let half = [[0.0, 0.5], [0.5, 1.0]].map(|u| crate::basis::legendre::interval_gram(u, k));
         let kk = k * k;
         let m = std::array::from_fn(|quarter| {
             let (hs, ht) = (&half[quarter & 1], &half[quarter >> 1]);

@@ -30,6 +30,23 @@ pub fn legendre_at_one(p: usize) -> f64 {
     ((2 * p + 1) as f64).sqrt()
 }
 
+/// ∫_u φ_p φ_q over an interval u of [0, 1], exactly (Gauss with k points), `[p][q]` for
+/// p, q < k: the Gram matrix of the first k polynomials on a part of their interval.
+pub fn interval_gram(u: [f64; 2], k: usize) -> Vec<f64> {
+    let rule = crate::quadrature::Rule::for_degree(2 * (k - 1));
+    let mut phi = vec![0.0; k];
+    let mut m = vec![0.0; k * k];
+    for (x, w) in rule.mapped(u[0], u[1]) {
+        legendre(x, &mut phi);
+        for p in 0..k {
+            for q in 0..k {
+                m[p * k + q] += w * phi[p] * phi[q];
+            }
+        }
+    }
+    m
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
