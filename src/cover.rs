@@ -183,6 +183,40 @@ impl Mask {
         }
     }
 
+    /// Whether every covered point of the piece `[s0, s1] × [t0, t1]` (aligned to the grid)
+    /// of `surface` lies behind the plane of `source`, to within a sub-cell. The kernel from
+    /// `source` vanishes there (cos θ < 0 at the source), so what `source` sends to the whole
+    /// piece is what it sends to the exposed part: true for the faces of the solid that
+    /// covers it, whose planes run along the outline.
+    pub fn covered_behind(
+        &self,
+        surface: &Parallelogram,
+        s: [f64; 2],
+        t: [f64; 2],
+        source: &Parallelogram,
+    ) -> bool {
+        let r = self.res as f64;
+        let idx = |x: f64| (x * r).round() as usize;
+        let tol = surface.diameter() / (r * SUB as f64);
+        let behind = |u: f64, v: f64| source.side(surface.at(u / r, v / r)) <= tol;
+        let sub = 1.0 / SUB as f64;
+        (idx(t[0])..idx(t[1])).all(|ct| {
+            (idx(s[0])..idx(s[1])).all(|cs| {
+                let (u, v) = (cs as f64, ct as f64);
+                match &self.cells[ct * self.res + cs] {
+                    Cell::Open => true,
+                    Cell::Covered => [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+                        .iter()
+                        .all(|&(du, dv)| behind(u + du, v + dv)),
+                    Cell::Cut(bits) => (0..SUB * SUB).all(|b| {
+                        let (i, j) = ((b % SUB) as f64, (b / SUB) as f64);
+                        !is_set(bits, b) || behind(u + (i + 0.5) * sub, v + (j + 0.5) * sub)
+                    }),
+                }
+            })
+        })
+    }
+
     /// The exposure of the piece `[s0, s1] × [t0, t1]` (aligned to the grid) for tensor
     /// Legendre polynomials of `k` terms per direction.
     pub fn exposure(&self, s: [f64; 2], t: [f64; 2], k: usize) -> Exposure {

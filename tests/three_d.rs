@@ -387,3 +387,98 @@ fn same_document_same_result_and_high_orders() {
         out.result.surfaces[0].mean
     );
 }
+
+/// The form factor from a point x with normal n to a convex polygon wholly above its horizon,
+/// by Lambert's formula: (1/2π) Σ γ_i n·(R_i × R_i+1)/|R_i × R_i+1|.
+fn lambert(x: [f64; 3], n: [f64; 3], poly: &[[f64; 3]]) -> f64 {
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let mut sum = 0.0;
+    for i in 0..poly.len() {
+        let (a, b) = (sub(poly[i], x), sub(poly[(i + 1) % poly.len()], x));
+        let c = cross(a, b);
+        let len = dot(c, c).sqrt();
+        if len > 0.0 {
+            let gamma = (dot(a, b) / (dot(a, a) * dot(b, b)).sqrt())
+                .clamp(-1.0, 1.0)
+                .acos();
+            sum += gamma * dot(n, c) / len;
+        }
+    }
+    (sum / (2.0 * std::f64::consts::PI)).abs()
+}
+
+#[test]
+fn the_floor_lit_by_the_face_of_a_box_standing_on_it() {
+    // a closed box stands on the floor; only its front face emits, only the floor reflects:
+    // B = ρ E F(x → face) in front of the face's plane and 0 behind it, with F in closed
+    // form. The floor cells along the face's foot lie partly under the box; what the face
+    // sends there is all on their exposed part (the kernel vanishes behind its plane).
+    let (x0, x1, z0, z1, h) = (3.0, 7.0, 3.3, 7.0, 2.0);
+    let face = [[x0, 0.0, z0], [x0, h, z0], [x1, h, z0], [x1, 0.0, z0]];
+    let doc = json!({
+        "scene": { "kind": "3d", "surfaces": [
+            { "name": "floor", "corners": [[0, 0, 0], [0, 0, 10], [10, 0, 10], [10, 0, 0]],
+              "reflectance": 0.5 },
+            { "name": "front", "corners": face, "emission": 1.0, "reflectance": 0.0 },
+            { "name": "back", "corners": [[x0, 0.0, z1], [x1, 0.0, z1], [x1, h, z1], [x0, h, z1]], "reflectance": 0.0 },
+            { "name": "left", "corners": [[x0, 0.0, z0], [x0, 0.0, z1], [x0, h, z1], [x0, h, z0]], "reflectance": 0.0 },
+            { "name": "right", "corners": [[x1, 0.0, z0], [x1, h, z0], [x1, h, z1], [x1, 0.0, z1]], "reflectance": 0.0 },
+            { "name": "top", "corners": [[x0, h, z0], [x0, h, z1], [x1, h, z1], [x1, h, z0]], "reflectance": 0.0 }
+        ]},
+        "solver": { "method": "hierarchical", "order": 0, "resolution": 16, "epsilon": 1e-4 },
+        "output": { "grid": 16 }
+    });
+    for (order, tolerance) in [(0, 3e-2), (1, 3e-2), (2, 3e-2)] {
+        let mut doc = doc.clone();
+        doc["solver"]["order"] = json!(order);
+        let out = run(doc);
+        let floor = &out.result.surfaces[0];
+        // the floor's s runs along z and t along x; cells are rows of t, then s
+        let (g, m) = (16, 48);
+        let rule = |a: f64, b: f64| (0..m).map(move |i| a + (b - a) * (i as f64 + 0.5) / m as f64);
+        let mut worst: f64 = 0.0;
+        for ct in 0..g {
+            for cs in 0..g {
+                let (za, zb) = (
+                    10.0 * cs as f64 / g as f64,
+                    10.0 * (cs + 1) as f64 / g as f64,
+                );
+                let (xa, xb) = (
+                    10.0 * ct as f64 / g as f64,
+                    10.0 * (ct + 1) as f64 / g as f64,
+                );
+                // the exposed part in front of the face's plane, by the midpoint rule
+                let zb_front = zb.min(z0);
+                if zb_front <= za {
+                    continue;
+                }
+                let sum: f64 = rule(xa, xb)
+                    .flat_map(|x| rule(za, zb_front).map(move |z| (x, z)))
+                    .map(|(x, z)| 0.5 * lambert([x, 0.0, z], [0.0, 1.0, 0.0], &face))
+                    .sum();
+                let want = sum * (zb_front - za) / (zb - za) / (m * m) as f64;
+                let got = floor.cells[ct * g + cs][0];
+                if want > 0.01 {
+                    let gap = (got / want - 1.0).abs();
+                    worst = worst.max(gap);
+                    if gap > 3e-3 {
+                        eprintln!(
+                            "cell ({cs}, {ct}): {got:.5} against {want:.5}, {:+.2}%",
+                            100.0 * (got / want - 1.0)
+                        );
+                    }
+                }
+            }
+        }
+        eprintln!("order {order}: worst {worst:.2e}");
+        assert!(worst < tolerance, "order {order}: {worst}");
+    }
+}

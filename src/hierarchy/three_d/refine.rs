@@ -169,6 +169,17 @@ impl Hierarchy<'_> {
         first
     }
 
+    /// Whether the kernel from source `s` reaches the covered part of receiver `r`: only
+    /// then is the block's irradiance, a polynomial over all of `r`, read off its exposed
+    /// part by the masked Gram matrix.
+    fn sends_to_covered(&self, r: u32, s: u32) -> bool {
+        let p = self.elements[r as usize].piece;
+        let source = &self.geo.quads[self.elements[s as usize].piece.surface];
+        self.masks[p.surface]
+            .as_ref()
+            .is_some_and(|m| !m.covered_behind(&self.geo.quads[p.surface], p.s, p.t, source))
+    }
+
     fn splittable(&self, e: u32) -> bool {
         self.elements[e as usize].level < self.max_level
     }
@@ -340,7 +351,11 @@ impl Hierarchy<'_> {
             .map(|(&(recv, src, factors, seen), (class, slot))| {
                 let mut block = class.from_class(&blocks[slot], k);
                 match &self.elements[recv as usize].exposure {
-                    Exposure::Partial(p) => seen.weigh_masked(p, k, &mut block),
+                    // unless the source sends nothing to the covered part: then the block
+                    // already holds the moments of the exposed part
+                    Exposure::Partial(p) if self.sends_to_covered(recv, src) => {
+                        seen.weigh_masked(p, k, &mut block)
+                    }
                     _ => seen.weigh(&quarters, &mut block),
                 }
                 Link {
