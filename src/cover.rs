@@ -23,6 +23,7 @@
 use crate::basis::legendre::interval_gram;
 use crate::bvh::Bvh;
 use crate::space::{add, cross, dot, normalize, scale, Parallelogram};
+use crate::visibility3d::STEP;
 use rayon::prelude::*;
 
 /// Sub-cells per side of a finest cell that the outline of a covered part crosses.
@@ -65,9 +66,10 @@ pub struct Partial {
     /// G⁺, its pseudo-inverse (eigenvalues below [`CUTOFF`] of the largest left out: the
     /// polynomials that nearly vanish on a thin exposed sliver are not determined by it).
     pub inverse: Vec<f64>,
-    /// ∫_quarter χ φ_a φ_c for the quarters `ds + 2 dt`: G split by the element's quarters,
-    /// for a visible fraction that is a step over them ([`crate::visibility3d::Seen`]).
-    pub quarters: [Vec<f64>; 4],
+    /// ∫_cell χ φ_a φ_c for the [`STEP`] × [`STEP`] cells of the element (index `i + STEP j`
+    /// by their s and t positions): G split by those cells, for a visible fraction that is
+    /// a step over them ([`crate::visibility3d::Seen`]).
+    pub steps: Vec<Vec<f64>>,
 }
 
 impl Partial {
@@ -243,16 +245,28 @@ impl Mask {
         // ∫ χ φ_a φ_c over the piece's unit square: a sum of exact integrals over the open
         // cells and runs of open sub-cells, each a rectangle u × v of that square
         let kk = k * k;
-        let mut quarters: [Vec<f64>; 4] = std::array::from_fn(|_| vec![0.0; kk * kk]);
+        let mut steps: Vec<Vec<f64>> = vec![vec![0.0; kk * kk]; STEP * STEP];
         let (ws, wt) = ((s1 - s0) as f64, (t1 - t0) as f64);
         let mut add_rect = |u: [f64; 2], v: [f64; 2]| {
             let (u, v) = ([u[0] / ws, u[1] / ws], [v[0] / wt, v[1] / wt]);
-            let quarter = usize::from(u[0] + u[1] > 1.0) + 2 * usize::from(v[0] + v[1] > 1.0);
-            let (ms, mt) = (interval_gram(u, k), interval_gram(v, k));
-            let m = &mut quarters[quarter];
-            for a in 0..kk {
-                for c in 0..kk {
-                    m[a * kk + c] += mt[(a / k) * k + c / k] * ms[(a % k) * k + c % k];
+            // the rectangle's part in each step cell it meets
+            let clip = |x: [f64; 2], i: usize| {
+                let (lo, hi) = (i as f64 / STEP as f64, (i + 1) as f64 / STEP as f64);
+                let c = [x[0].max(lo), x[1].min(hi)];
+                (c[1] - c[0] > 1e-15).then_some(c)
+            };
+            for j in 0..STEP {
+                let Some(v) = clip(v, j) else { continue };
+                let mt = interval_gram(v, k);
+                for i in 0..STEP {
+                    let Some(u) = clip(u, i) else { continue };
+                    let ms = interval_gram(u, k);
+                    let m = &mut steps[i + STEP * j];
+                    for a in 0..kk {
+                        for c in 0..kk {
+                            m[a * kk + c] += mt[(a / k) * k + c / k] * ms[(a % k) * k + c % k];
+                        }
+                    }
                 }
             }
         };
@@ -287,7 +301,7 @@ impl Mask {
             }
         }
         let mut gram = vec![0.0; kk * kk];
-        for m in &quarters {
+        for m in &steps {
             gram.iter_mut().zip(m).for_each(|(g, m)| *g += m);
         }
         // φ_0 = 1 on the unit square: G_00 is the exposed area
@@ -297,7 +311,7 @@ impl Mask {
         Exposure::Partial(Box::new(Partial {
             inverse: pseudo_inverse(&gram, kk),
             gram,
-            quarters,
+            steps,
         }))
     }
 }
@@ -436,6 +450,16 @@ mod tests {
                 }
             }
             assert!((p.fraction() - 0.5).abs() < 1e-14);
+            // the step cells: nothing on the covered half, the plain Gram matrices of the
+            // cells on the exposed one
+            let plain = crate::visibility3d::Steps::new(k);
+            for (c, (masked, plain)) in p.steps.iter().zip(&plain.m).enumerate() {
+                let exposed = c % STEP >= STEP / 2;
+                for (g, w) in masked.iter().zip(plain) {
+                    let want = if exposed { *w } else { 0.0 };
+                    assert!((g - want).abs() < 1e-14, "k={k}, cell {c}");
+                }
+            }
             // a polynomial on the exposed half is recovered from its masked moments: exactly
             // while G is well conditioned (k ≤ 3), else up to what the pseudo-inverse leaves
             // out, whose norm on the exposed part is below √CUTOFF of the whole

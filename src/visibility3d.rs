@@ -9,9 +9,10 @@
 //!   per pair of points that face each other through the [`Bvh`], each weighted by the kernel.
 //!   The jitter is seeded from the indices of the two pieces, so the same document gives the
 //!   same fractions.
-//! - The same rays, grouped by the quarter of the receiver they start from, give the visible
-//!   fraction as a 2 × 2 step over the receiver ([`Seen`]); a Galerkin block is weighted by it
-//!   on the receiver's side, so a shadow edge through a receiver shows in its polynomial.
+//! - The same rays, grouped by the quarter (or, with enough of them, by the cell of a 4 × 4
+//!   grid) of the receiver they start from, give the visible fraction as a step over the
+//!   receiver ([`Seen`]); a Galerkin block is weighted by it on the receiver's side, so a
+//!   shadow edge through a receiver shows in its polynomial.
 
 use crate::bvh::Bvh;
 use crate::cover::{Mask, Partial};
@@ -193,61 +194,81 @@ pub fn pair_seed(a: u64, b: u64) -> u64 {
     r.next_u64()
 }
 
+/// Cells per side of the receiver over which a link's visible fraction is a step.
+pub const STEP: usize = 4;
+const CELLS: usize = STEP * STEP;
+
+/// The quarter (`ds + 2 dt`) of the receiver that step cell `c` (`i + STEP j`) lies in.
+fn quarter_of(c: usize) -> usize {
+    let (i, j) = (c % STEP, c / STEP);
+    usize::from(2 * i >= STEP) + 2 * usize::from(2 * j >= STEP)
+}
+
 /// What the rays between two pieces saw: the visible fraction of the whole transfer, and of
-/// the part of it that arrives on each quarter of the receiver `a` (index `ds + 2 dt` by the
-/// halves of its (s, t) range).
+/// the part of it that arrives on each of the [`STEP`] × [`STEP`] cells of the receiver `a`
+/// (index `i + STEP j` by its s and t positions).
 ///
 /// A shadow edge crosses a receiver as a step; one fraction for the whole link spreads it
 /// evenly (the floor next to a box gets the same share of sky at the box's foot as a cell's
-/// width away from it). The quarters keep a 2 × 2 step of it, from the same rays.
+/// width away from it). The cells keep a step of it, from the same rays: with few rays one
+/// value per quarter of the receiver, with enough (four per cell) one per cell.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Seen {
     pub whole: f64,
-    pub quarters: [f64; 4],
+    pub cells: [f64; CELLS],
 }
 
 impl Seen {
     /// Nothing in between.
     pub const CLEAR: Seen = Seen {
         whole: 1.0,
-        quarters: [1.0; 4],
+        cells: [1.0; CELLS],
     };
 
+    /// The mean fraction over each quarter of the receiver (`ds + 2 dt`).
+    pub fn quarters(&self) -> [f64; 4] {
+        let mut q = [0.0; 4];
+        for (c, v) in self.cells.iter().enumerate() {
+            q[quarter_of(c)] += v / (CELLS / 4) as f64;
+        }
+        q
+    }
+
     /// Weighs a Galerkin block (`k² × k²`, row = receiver coefficient) by the visible
-    /// fraction as a function on the receiver, piecewise constant on its quarters: the block
-    /// becomes W · block with W = Σ_quarters V_quarter M_quarter ([`Quarters`]), the
-    /// receiver's basis multiplied by that step function and projected back.
+    /// fraction as a function on the receiver, piecewise constant on its step cells: the
+    /// block becomes W · block with W = Σ_cells V_cell M_cell ([`Steps`]), the receiver's
+    /// basis multiplied by that step function and projected back.
     ///
     /// At order 0 (k = 1) a receiver holds one constant, which the step cannot change: W
-    /// would be the plain mean of the quarters, and the whole fraction, weighted by the
+    /// would be the plain mean of the cells, and the whole fraction, weighted by the
     /// kernel, is the better estimate of the same number.
-    pub fn weigh(&self, quarters: &Quarters, block: &mut [f64]) {
-        if quarters.k == 1 || self.quarters.iter().all(|&v| v == self.whole) {
+    pub fn weigh(&self, steps: &Steps, block: &mut [f64]) {
+        if steps.k == 1 || self.cells.iter().all(|&v| v == self.whole) {
             block.iter_mut().for_each(|x| *x *= self.whole);
             return;
         }
-        self.apply_step(&quarters.m, quarters.k, block);
+        self.apply_step(&steps.m, steps.k, block);
     }
 
-    /// [`Seen::weigh`] for a partly covered receiver: W = Σ_quarters V_quarter G_quarter
-    /// with the masked Gram matrices of its quarters ([`Partial`]), which turns the block
-    /// into the moments ∫ χ φ_a H of the exposed part. The fractions are those of the
-    /// exposed part ([`visible_fraction_over`]); uniform ones make W = V G.
+    /// [`Seen::weigh`] for a partly covered receiver: W = Σ_cells V_cell G_cell with the
+    /// masked Gram matrices of its step cells ([`Partial`]), which turns the block into the
+    /// moments ∫ χ φ_a H of the exposed part. The fractions are those of the exposed part
+    /// ([`visible_fraction_over`]); uniform ones make W = V G.
     pub fn weigh_masked(&self, partial: &Partial, k: usize, block: &mut [f64]) {
-        if k == 1 || self.quarters.iter().all(|&v| v == self.whole) {
+        if k == 1 || self.cells.iter().all(|&v| v == self.whole) {
             let kk = k * k;
             let w: Vec<f64> = partial.gram.iter().map(|g| self.whole * g).collect();
             left_multiply(&w, kk, block);
             return;
         }
-        self.apply_step(&partial.quarters, k, block);
+        self.apply_step(&partial.steps, k, block);
     }
 
-    /// block ← (Σ_quarters V_quarter M_quarter) · block.
-    fn apply_step(&self, m: &[Vec<f64>; 4], k: usize, block: &mut [f64]) {
+    /// block ← (Σ_cells V_cell M_cell) · block.
+    fn apply_step(&self, m: &[Vec<f64>], k: usize, block: &mut [f64]) {
         let kk = k * k;
         let mut w = vec![0.0; kk * kk];
-        for (m, &v) in m.iter().zip(&self.quarters) {
+        for (m, &v) in m.iter().zip(&self.cells) {
             w.iter_mut().zip(m).for_each(|(w, m)| *w += v * m);
         }
         left_multiply(&w, kk, block);
@@ -264,32 +285,39 @@ fn left_multiply(w: &[f64], kk: usize, block: &mut [f64]) {
     }
 }
 
-/// M_quarter[a][c] = ∫_quarter φ_a φ_c over the unit square, for the tensor products
+/// M_cell[a][c] = ∫_cell φ_a φ_c over the unit square, for the tensor products
 /// φ_a = φ_p(ŝ) φ_q(t̂) (`a = q k + p`) of the orthonormal shifted Legendre polynomials of
-/// [`crate::basis::legendre`]: the Gram matrices of the basis on the four quarters (they sum
-/// to the identity).
+/// [`crate::basis::legendre`]: the Gram matrices of the basis on the [`STEP`] × [`STEP`]
+/// cells (they sum to the identity).
 #[derive(Debug, Clone)]
-pub struct Quarters {
+pub struct Steps {
     pub k: usize,
-    pub m: [Vec<f64>; 4],
+    pub m: Vec<Vec<f64>>,
 }
 
-impl Quarters {
-    pub fn new(k: usize) -> Quarters {
-        // ∫ φ_p φ_q over [0, ½] and over [½, 1]
-        let half = [[0.0, 0.5], [0.5, 1.0]].map(|u| crate::basis::legendre::interval_gram(u, k));
+impl Steps {
+    pub fn new(k: usize) -> Steps {
+        // ∫ φ_p φ_q over each [i / STEP, (i + 1) / STEP]
+        let strips: Vec<Vec<f64>> = (0..STEP)
+            .map(|i| {
+                let u = [i as f64 / STEP as f64, (i + 1) as f64 / STEP as f64];
+                crate::basis::legendre::interval_gram(u, k)
+            })
+            .collect();
         let kk = k * k;
-        let m = std::array::from_fn(|quarter| {
-            let (hs, ht) = (&half[quarter & 1], &half[quarter >> 1]);
-            let mut m = vec![0.0; kk * kk];
-            for a in 0..kk {
-                for c in 0..kk {
-                    m[a * kk + c] = ht[(a / k) * k + c / k] * hs[(a % k) * k + c % k];
+        let m = (0..CELLS)
+            .map(|c| {
+                let (hs, ht) = (&strips[c % STEP], &strips[c / STEP]);
+                let mut m = vec![0.0; kk * kk];
+                for a in 0..kk {
+                    for d in 0..kk {
+                        m[a * kk + d] = ht[(a / k) * k + d / k] * hs[(a % k) * k + d % k];
+                    }
                 }
-            }
-            m
-        });
-        Quarters { k, m }
+                m
+            })
+            .collect();
+        Steps { k, m }
     }
 }
 
@@ -311,8 +339,9 @@ fn extend(known: &[Option<f64>; 4], q: usize, whole: f64) -> f64 {
 /// The visible fraction of the transfer between `a` and `b`: over a stratified `n × n` set of
 /// point pairs, Σ w V / Σ w with w the point-to-disc kernel cosθa cosθb / (π r² + A) (A the
 /// smaller piece's area, which keeps the weight finite for touching pieces), and the same over
-/// the pairs whose point on `a` lies in each quarter of `a` (the whole fraction where a
-/// quarter has none). Pairs that do not face each other carry no weight and cast no ray:
+/// the pairs whose point on `a` lies in each quarter of `a` or, for `n` ≥ 2 [`STEP`], in each
+/// step cell of `a` ([`Seen`]; a quarter no pair reached is extended from the others, a
+/// cell takes its quarter's). Pairs that do not face each other carry no weight and cast no ray:
 /// counting them would make a block's back-facing part, which a ray through the block itself
 /// always finds occluded, darken its front. Returns 0 when no pair faces; the number of rays
 /// cast is added to `rays`.
@@ -349,7 +378,7 @@ pub fn visible_fraction_over(
         let j = (rng.next_u64() % (i as u64 + 1)) as usize;
         perm.swap(i, j);
     }
-    let (mut seen, mut total) = ([0.0; 4], [0.0; 4]);
+    let (mut seen, mut total) = ([0.0; CELLS], [0.0; CELLS]);
     let cell = 1.0 / n as f64;
     for (i, &j) in perm.iter().enumerate() {
         let (ia, ja) = (i % n, i / n);
@@ -373,23 +402,39 @@ pub fn visible_fraction_over(
         }
         let r2 = dot(d, d);
         let w = ca * cb / (r2 * (r2 + disc));
-        let quarter = usize::from(ua >= 0.5) + 2 * usize::from(va >= 0.5);
+        let step = |u: f64| ((u * STEP as f64) as usize).min(STEP - 1);
+        let cell = step(ua) + STEP * step(va);
         *rays += 1;
         if !bvh.occluded(x, y, [a.surface, b.surface]) {
-            seen[quarter] += w;
+            seen[cell] += w;
         }
-        total[quarter] += w;
+        total[cell] += w;
     }
-    let sum = |v: [f64; 4]| v.iter().sum::<f64>();
-    let whole = if sum(total) > 0.0 {
-        sum(seen) / sum(total)
+    let whole = if total.iter().sum::<f64>() > 0.0 {
+        seen.iter().sum::<f64>() / total.iter().sum::<f64>()
     } else {
         0.0
     };
-    let fraction = |q: usize| (total[q] > 0.0).then(|| seen[q] / total[q]);
+    let (mut qs, mut qt) = ([0.0; 4], [0.0; 4]);
+    for c in 0..CELLS {
+        qs[quarter_of(c)] += seen[c];
+        qt[quarter_of(c)] += total[c];
+    }
+    let fraction = |q: usize| (qt[q] > 0.0).then(|| qs[q] / qt[q]);
     let known: [Option<f64>; 4] = std::array::from_fn(fraction);
-    let quarters = std::array::from_fn(|q| known[q].unwrap_or_else(|| extend(&known, q, whole)));
-    Seen { whole, quarters }
+    let quarters: [f64; 4] =
+        std::array::from_fn(|q| known[q].unwrap_or_else(|| extend(&known, q, whole)));
+    // one value per cell once the stratified points put four in each; a cell no facing
+    // pair reached keeps its quarter's
+    let fine = n >= 2 * STEP;
+    let cells = std::array::from_fn(|c| {
+        if fine && total[c] > 0.0 {
+            seen[c] / total[c]
+        } else {
+            quarters[quarter_of(c)]
+        }
+    });
+    Seen { whole, cells }
 }
 
 #[cfg(test)]
@@ -444,9 +489,9 @@ mod tests {
     }
 
     #[test]
-    fn quarter_grams_are_exact_and_sum_to_the_identity() {
+    fn step_grams_are_exact_and_sum_to_the_identity() {
         for k in 1..=4 {
-            let q = Quarters::new(k);
+            let q = Steps::new(k);
             let kk = k * k;
             for a in 0..kk {
                 for c in 0..kk {
@@ -456,14 +501,23 @@ mod tests {
                 }
             }
         }
-        // k = 2 on the quarter [0, ½]²: (∫₀^½ φ_p φ_q)_pq = [[½, −√3/4], [−√3/4, ½]] in each
-        // direction, and the Gram matrix is their tensor product
-        let q = Quarters::new(2);
-        let h = [[0.5, -(3f64).sqrt() / 4.0], [-(3f64).sqrt() / 4.0, 0.5]];
+        // k = 2 on the quarter [0, ½]² (the cells i, j < 2): (∫₀^½ φ_p φ_q)_pq =
+        // [[½, −√3/4], [−√3/4, ½]] in each direction, and the Gram matrix is their tensor
+        // product; on the cell [0, ¼]², (∫₀^¼ φ_p φ_q)_pq = [[¼, −3√3/16], [−3√3/16, 7/16]]
+        let q = Steps::new(2);
+        let r3 = (3f64).sqrt();
+        let h = [[0.5, -r3 / 4.0], [-r3 / 4.0, 0.5]];
+        let c = [[0.25, -3.0 * r3 / 16.0], [-3.0 * r3 / 16.0, 7.0 / 16.0]];
         for a in 0..4 {
-            for c in 0..4 {
-                let want = h[a / 2][c / 2] * h[a % 2][c % 2];
-                assert!((q.m[0][a * 4 + c] - want).abs() < 1e-15);
+            for d in 0..4 {
+                let quarter: f64 = [0, 1, STEP, STEP + 1]
+                    .iter()
+                    .map(|&i| q.m[i][a * 4 + d])
+                    .sum();
+                let want = h[a / 2][d / 2] * h[a % 2][d % 2];
+                assert!((quarter - want).abs() < 1e-15);
+                let want = c[a / 2][d / 2] * c[a % 2][d % 2];
+                assert!((q.m[0][a * 4 + d] - want).abs() < 1e-15);
             }
         }
     }
@@ -477,21 +531,34 @@ mod tests {
         block[0] = 1.0;
         let seen = Seen {
             whole: 0.5,
-            quarters: [1.0, 0.0, 1.0, 0.0],
+            cells: std::array::from_fn(|c| if c % STEP < STEP / 2 { 1.0 } else { 0.0 }),
         };
-        seen.weigh(&Quarters::new(k), &mut block);
+        seen.weigh(&Steps::new(k), &mut block);
         let column: Vec<f64> = (0..4).map(|a| block[a * 4]).collect();
         let want = [0.5, -(3f64).sqrt() / 4.0, 0.0, 0.0];
         for (g, w) in column.iter().zip(want) {
             assert!((g - w).abs() < 1e-15, "{column:?}");
         }
-        // equal quarters scale the block
+        // seen on the first quarter of ŝ only: ∫₀^¼ φ₀ = ¼, ∫₀^¼ φ₁ = √3 (¼² ·2 − ¼) = −3√3/16
+        let mut block = vec![0.0; 16];
+        block[0] = 1.0;
+        Seen {
+            whole: 0.25,
+            cells: std::array::from_fn(|c| if c % STEP == 0 { 1.0 } else { 0.0 }),
+        }
+        .weigh(&Steps::new(k), &mut block);
+        let column: Vec<f64> = (0..4).map(|a| block[a * 4]).collect();
+        let want = [0.25, -3.0 * (3f64).sqrt() / 16.0, 0.0, 0.0];
+        for (g, w) in column.iter().zip(want) {
+            assert!((g - w).abs() < 1e-15, "{column:?}");
+        }
+        // equal cells scale the block
         let mut block = vec![2.0; 16];
         Seen {
             whole: 0.25,
-            quarters: [0.25; 4],
+            cells: [0.25; CELLS],
         }
-        .weigh(&Quarters::new(k), &mut block);
+        .weigh(&Steps::new(k), &mut block);
         assert!(block.iter().all(|&x| x == 0.5));
     }
 
@@ -511,9 +578,20 @@ mod tests {
         let bvh = Bvh::new(&quads);
         let mut rays = 0;
         let v = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 16, 3, &mut rays);
-        let [q0, q1, q2, q3] = v.quarters;
+        let [q0, q1, q2, q3] = v.quarters();
         assert!(q0 < 0.5 * q1 && q2 < 0.5 * q3, "{v:?}");
         assert!(q0 < v.whole && v.whole < q1, "{v:?}");
+        // with four points in each step cell, each cell has its own fraction: the light
+        // falls on the floor from above the blocker's edge at s = ½ at slants up to 45°, so
+        // the shadow deepens away from the edge, cell by cell
+        let row: Vec<f64> = (0..STEP).map(|i| v.cells[i + STEP]).collect();
+        assert!(
+            row[0] < row[1] && row[1] < row[2] && row[2] <= row[3],
+            "{row:?}"
+        );
+        // with two points per cell, one value per quarter
+        let v = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 4, 3, &mut rays);
+        assert_eq!(v.cells[0], v.cells[STEP + 1]);
         // the missing quarters of a receiver behind the source on one side are extended
         let known = [Some(0.2), Some(0.6), None, Some(0.8)];
         assert!((extend(&known, 2, 0.5) - 0.4).abs() < 1e-15);

@@ -14,7 +14,7 @@ use crate::quadrature::Rule;
 use crate::scene::Quad;
 use crate::space::{quad_quad, Parallelogram};
 use crate::transfer::{self, Accuracy, Integrand};
-use crate::visibility3d::{self, pair_seed, Piece, Quarters, Seen};
+use crate::visibility3d::{self, pair_seed, Piece, Seen, Steps};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -225,7 +225,7 @@ pub fn matrix(
     let mut m = Dense::zeros(size);
     let done = AtomicUsize::new(0);
     let blocks = geo.len() * n * n;
-    let quarters = Quarters::new(k);
+    let steps = Steps::new(k);
     progress.report(Phase::Projection, 0.0);
     let counts: Vec<(u64, u64)> = m
         .data
@@ -265,7 +265,7 @@ pub fn matrix(
                         acc,
                         &mut block,
                     );
-                    v.weigh(&quarters, &mut block);
+                    v.weigh(&steps, &mut block);
                     for r in 0..kk {
                         let dst = &mut rows
                             [r * size + j * per + b * kk..r * size + j * per + (b + 1) * kk];

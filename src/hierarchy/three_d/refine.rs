@@ -30,7 +30,7 @@ use crate::progress::{Cancelled, Progress};
 use crate::projection::three_d::VISIBILITY_GRID;
 use crate::space::quad_quad;
 use crate::transfer::{self, Integrand};
-use crate::visibility3d::{pair_seed, Piece, Quarters, Seen};
+use crate::visibility3d::{pair_seed, Piece, Seen, Steps, STEP};
 use rayon::prelude::*;
 
 /// The geometric part of the oracle's estimate for one pair.
@@ -231,9 +231,18 @@ impl Hierarchy<'_> {
             .min(self.elements[s as usize].level);
         let grid = VISIBILITY_GRID << 2u32.saturating_sub(top);
         let mask = self.masks[pr.surface].as_ref();
-        let v = self
+        let mut v = self
             .geo
             .visibility_over(pr, mask, ps, seed, grid, &mut rays);
+        // a partly visible pair gets four rays per step cell of the receiver, so that its
+        // visible fraction is a step over those cells rather than over the quarters (a
+        // constant, at order 0, gains nothing from it)
+        let fine = 2 * STEP;
+        if self.k > 1 && grid < fine && v.whole > 0.0 && v.whole < 1.0 {
+            v = self
+                .geo
+                .visibility_over(pr, mask, ps, seed ^ 1, fine, &mut rays);
+        }
         // partly visible, or hidden as far as the few sampled rays can tell (a big pair's
         // light may pass through a gap none of them found): no smoothness credit
         let x = Factors {
@@ -344,7 +353,7 @@ impl Hierarchy<'_> {
                 Ok(classes[i].to_class(&block, k))
             })
             .collect::<Result<_, Cancelled>>()?;
-        let quarters = Quarters::new(k);
+        let steps = Steps::new(k);
         Ok(pending
             .iter()
             .zip(classes.iter().zip(slots))
@@ -356,7 +365,7 @@ impl Hierarchy<'_> {
                     Exposure::Partial(p) if self.sends_to_covered(recv, src) => {
                         seen.weigh_masked(p, k, &mut block)
                     }
-                    _ => seen.weigh(&quarters, &mut block),
+                    _ => seen.weigh(&steps, &mut block),
                 }
                 Link {
                     recv,
