@@ -1,7 +1,8 @@
 //! B over one surface, as the piecewise polynomials that a solve produces: leaves in the
 //! parameter domain [0,1] (flatland, fredholm) or [0,1]² (3d), each with its local expansion in
 //! orthonormal shifted Legendre polynomials (tensor products in 2D). Uniform grids and the
-//! quadtrees of the hierarchical method are both such fields.
+//! quadtrees of the hierarchical method are both such fields. Evaluating one is the sum
+//! B_p(x) = Σ_i b_i N_i(x) of the slides' eq. (7).
 
 use crate::basis::legendre;
 use crate::quadrature::Rule;

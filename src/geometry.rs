@@ -1,4 +1,5 @@
-//! Points and vectors of flatland, and the parametrisation of a segment.
+//! Points and vectors of flatland, and the parametrisation of a segment: the r and cos θ of
+//! the flatland kernel, the slides' eq. (4).
 
 use std::ops::{Add, Mul, Sub};
 

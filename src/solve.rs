@@ -1,4 +1,5 @@
-//! Iterative solution of (I − ρK) B = E for the three channels at once, with K sparse.
+//! Iterative solution of the slides' eq. (12), B = E + KB, i.e. (I − ρK) B = E, for the three
+//! channels at once, with K sparse.
 //!
 //! - Jacobi (the slides' "Implementation of Algorithm"): B⁺_i = (E_i + ρ_i Σ_{j≠i} K_ij B_j) /
 //!   (1 − ρ_i K_ii), rows in parallel. When K has no diagonal (planar patches in the scaling

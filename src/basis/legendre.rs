@@ -1,6 +1,8 @@
 //! Orthonormal shifted Legendre polynomials on [0, 1]: φ_p(x) = √(2p+1) P_p(2x − 1),
 //! so that ∫₀¹ φ_p φ_q = δ_pq. On a cell [c/n, (c+1)/n] of an interval of length L the
-//! orthonormal (in arc length) basis function is φ_p(n x − c) √(n / L).
+//! orthonormal (in arc length) basis function is φ_p(n x − c) √(n / L). These are the N_i of
+//! the slides' projection, eq. (7): B_p = Σ ⟨B, Ñ_i⟩ N_i, with Ñ_i = N_i since they are
+//! orthonormal.
 
 /// Writes φ_0(x) … φ_m(x) into `out` (length m + 1), by the three-term recurrence
 /// (p+1) P_{p+1}(u) = (2p+1) u P_p(u) − p P_{p−1}(u), u = 2x − 1.

@@ -36,9 +36,15 @@ pub struct Options {
     pub mesh: bool,
 }
 
-/// The scene of `job` from its camera (or one framing the whole scene), with B from `outcome`.
+/// The scene of `job` from its camera (or one framing the whole scene), with B from `outcome`,
+/// shown as `output.image` asks (`raw`, `mesh`).
 pub fn render(job: &Job, outcome: &Outcome, width: u32, height: u32) -> RgbImage {
-    render_fields(job, &outcome.fields, width, height, Options::default())
+    let spec = job.output.image;
+    let opts = Options {
+        raw: spec.raw,
+        mesh: spec.mesh,
+    };
+    render_fields(job, &outcome.fields, width, height, opts)
 }
 
 /// [`render`] from the fields themselves, with options.

@@ -219,6 +219,10 @@ pub struct ImageSpec {
     pub width: u32,
     pub height: u32,
     pub exposure: Exposure,
+    /// 3d: show the elements as solved (flat at order 0) instead of smoothly interpolated.
+    pub raw: bool,
+    /// 3d: draw the outlines of the elements over the image.
+    pub mesh: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -252,6 +256,8 @@ impl Default for Output {
                 width: 512,
                 height: 512,
                 exposure: Exposure::Auto,
+                raw: false,
+                mesh: false,
             },
             camera: None,
             grid: 8,

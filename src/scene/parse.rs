@@ -578,7 +578,12 @@ fn output(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Output> {
 
 fn image(w: &mut Walker, v: &Value, limits: &Limits) -> Option<ImageSpec> {
     let path = "/output/image";
-    let map = w.object(v, path, &["width", "height", "exposure"])?;
+    let map = w.object(v, path, &["width", "height", "exposure", "raw", "mesh"])?;
+    let flag = |w: &mut Walker, key: &str| match map.get(key) {
+        Some(v) => w.boolean(v, &child(path, key)),
+        None => Some(false),
+    };
+    let (raw, mesh) = (flag(w, "raw"), flag(w, "mesh"));
     let dim = |w: &mut Walker, key: &str| match map.get(key) {
         Some(v) => w.integer(v, &child(path, key), 1, 16384).map(|x| x as u32),
         None => Some(512),
@@ -612,6 +617,8 @@ fn image(w: &mut Walker, v: &Value, limits: &Limits) -> Option<ImageSpec> {
         width,
         height,
         exposure: exposure?,
+        raw: raw?,
+        mesh: mesh?,
     })
 }
 
@@ -828,7 +835,7 @@ mod tests {
             {"name": "a", "segment": [[0, 0], [0, 0]], "reflectance": 1.0, "emision": 1},
             {"name": "a", "segment": [[1, 1], [0, 1]], "reflectance": [0.1, -0.2, 0.3], "emission": -1}
         ]}, "solver": {"order": 99, "resolution": 12, "keep": {"top": 0}, "metod": 1},
-           "output": {"grid": 0, "reference": "exact"}});
+           "output": {"grid": 0, "reference": "exact", "image": {"raw": "yes", "mesh": 1}}});
         let mut got = errors(doc);
         got.sort();
         let mut want = vec![
@@ -841,6 +848,8 @@ mod tests {
             "/solver/order",
             "/solver/keep/top",
             "/output/grid",
+            "/output/image/raw",
+            "/output/image/mesh",
         ];
         want.sort();
         assert_eq!(got, want);

@@ -123,6 +123,17 @@ impl Walker {
         usize::try_from(n).ok()
     }
 
+    pub fn boolean(&mut self, v: &Value, path: &str) -> Option<bool> {
+        let b = v.as_bool();
+        if b.is_none() {
+            self.error(
+                path,
+                format!("expected true or false, found {}", kind_of(v)),
+            );
+        }
+        b
+    }
+
     pub fn string<'v>(&mut self, v: &'v Value, path: &str) -> Option<&'v str> {
         let s = v.as_str();
         if s.is_none() {
