@@ -268,6 +268,35 @@ async fn unknown_jobs_and_routes_are_404() {
 }
 
 #[tokio::test(flavor = "multi_thread")]
+async fn workers_solve_jobs_at_once_beside_a_busy_one() {
+    // two workers: a small job finishes while a big one keeps every core busy in parallel
+    // loops (with one pool shared by the workers it waited for the big one to end)
+    let (_dir, state, router) = setup(|c| c.workers = 2);
+    let (st, _, s) = submit(&router, &named("busy big")).await;
+    assert_eq!(st, StatusCode::ACCEPTED);
+    let busy = s["id"].as_str().unwrap().to_string();
+    wait_until(&state, &busy, |s| s == JobState::Running).await;
+    let t = Instant::now();
+    let (_, _, s) = submit(&router, &named("small")).await;
+    let small = s["id"].as_str().unwrap().to_string();
+    let done = wait_until(&state, &small, |s| s.is_final()).await;
+    assert_eq!(done.state, JobState::Succeeded);
+    assert!(t.elapsed() < Duration::from_secs(5), "{:?}", t.elapsed());
+    assert_eq!(
+        state.queue.get(&busy).unwrap().status().state,
+        JobState::Running
+    );
+    let (st, _, _) = call(
+        &router,
+        Request::delete(format!("/api/v1/jobs/{busy}"))
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, StatusCode::NO_CONTENT);
+}
+
+#[tokio::test(flavor = "multi_thread")]
 async fn artifacts_before_success_are_409_and_a_running_job_cancels_within_a_second() {
     let (_dir, state, router) = setup(|_| {});
     let (st, _, s) = submit(&router, &named("slow one")).await;

@@ -1,9 +1,11 @@
-//! The job queue: a bounded channel of accepted jobs, a dispatcher that hands each to a rayon
-//! pool of `workers` threads when one is free, and the live status of every job.
+//! The job queue: a bounded channel of accepted jobs, a dispatcher that hands each to one of
+//! `workers` rayon pools when one is free, and the live status of every job.
 //!
-//! Why this shape: the async runtime must never block on a solve, so solves run on the rayon
-//! pool; the dispatcher holds one semaphore permit per running job so that a pool thread that
-//! waits inside a parallel loop never starts a second job on its stack; the channel's capacity
+//! Why this shape: the async runtime must never block on a solve, so solves run on rayon
+//! pools, one per worker slot, each with a thread per core. A job's parallel loops run on its
+//! own pool: with one shared pool a second job waited in the pool's queue behind the first
+//! one's parallel work (and a thread waiting inside a parallel loop could start it on its
+//! stack), so `workers` jobs did not run at once. The channel's capacity
 //! is `queue_capacity`, and a full channel is answered 429. The status of a job lives in a
 //! `tokio::sync::watch` channel: handlers read it, SSE streams follow it, and the solver thread
 //! writes it without an async context.
@@ -27,7 +29,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
-use tokio::sync::{mpsc, watch, Notify, Semaphore};
+use tokio::sync::{mpsc, watch, Notify};
 use tokio_util::sync::CancellationToken;
 use utoipa::ToSchema;
 
@@ -260,7 +262,8 @@ struct Inner {
     entries: Mutex<HashMap<String, Arc<Entry>>>,
     sender: mpsc::Sender<Arc<Entry>>,
     store: Store,
-    pool: rayon::ThreadPool,
+    /// One pool per worker slot.
+    pools: Vec<rayon::ThreadPool>,
     solve: SolveFn,
     config: Config,
     metrics: Arc<Metrics>,
@@ -286,19 +289,24 @@ impl Queue {
     ) -> Result<Queue, StoreError> {
         let store = Store::open(&config.data_dir)?;
         let workers = config.worker_threads();
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(workers)
-            .thread_name(|i| format!("wavrad-solve-{i}"))
-            .panic_handler(|_| tracing::error!("a task of the solver pool panicked"))
-            .build()
-            .map_err(|e| StoreError::Io(std::io::Error::other(e)))?;
+        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+        let pools = (0..workers)
+            .map(|slot| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(cores)
+                    .thread_name(move |i| format!("wavrad-solve-{slot}-{i}"))
+                    .panic_handler(|_| tracing::error!("a task of the solver pool panicked"))
+                    .build()
+                    .map_err(|e| StoreError::Io(std::io::Error::other(e)))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         let (sender, receiver) = mpsc::channel(config.queue_capacity.max(1));
         let queue = Queue {
             inner: Arc::new(Inner {
                 entries: Mutex::new(HashMap::new()),
                 sender,
                 store,
-                pool,
+                pools,
                 solve,
                 config,
                 metrics,
@@ -308,12 +316,7 @@ impl Queue {
             }),
         };
         let requeue = queue.restore()?;
-        tokio::spawn(dispatch(
-            queue.clone(),
-            receiver,
-            Arc::new(Semaphore::new(workers)),
-            shutdown.clone(),
-        ));
+        tokio::spawn(dispatch(queue.clone(), receiver, shutdown.clone()));
         let sender = queue.inner.sender.clone();
         tokio::spawn(async move {
             for entry in requeue {
@@ -740,19 +743,23 @@ fn internal(e: StoreError) -> Problem {
     Problem::new(StatusCode::INTERNAL_SERVER_ERROR, "the job store failed")
 }
 
-/// Hands queued jobs to the pool, one per free worker. A worker slot is taken before a job
+/// Hands queued jobs to the pools, one per free worker slot. A slot is taken before a job
 /// is received, so that waiting jobs stay in the bounded channel and count against its
 /// capacity.
 async fn dispatch(
     queue: Queue,
     mut receiver: mpsc::Receiver<Arc<Entry>>,
-    slots: Arc<Semaphore>,
     shutdown: CancellationToken,
 ) {
+    let workers = queue.inner.pools.len();
+    let (free, mut slots) = mpsc::channel::<usize>(workers);
+    for slot in 0..workers {
+        free.try_send(slot).expect("room for every slot");
+    }
     loop {
-        let permit = tokio::select! {
+        let slot = tokio::select! {
             _ = shutdown.cancelled() => return,
-            p = slots.clone().acquire_owned() => p.expect("the semaphore is never closed"),
+            s = slots.recv() => s.expect("the dispatcher holds a sender"),
         };
         let entry = loop {
             let entry = tokio::select! {
@@ -763,10 +770,12 @@ async fn dispatch(
                 break entry;
             }
         };
-        let q = queue.clone();
-        queue.inner.pool.spawn(move || {
+        let (q, free) = (queue.clone(), free.clone());
+        queue.inner.pools[slot].spawn(move || {
             q.run(entry);
-            drop(permit);
+            // a pool thread is outside the async runtime: a blocking send is allowed, and
+            // never waits (the channel has room for every slot)
+            let _ = free.blocking_send(slot);
         });
     }
 }

@@ -31,12 +31,29 @@ pub fn config(dir: &std::path::Path) -> Config {
 }
 
 /// The real solver, except for scenes named `slow …` (reports progress and waits for a
-/// cancel, for up to 30 s, then solves) and `panic …` (panics).
+/// cancel, for up to 30 s, then solves), `busy …` (the same, but busy in parallel loops on
+/// its pool the whole time, as a big solve is) and `panic …` (panics).
 pub fn test_solver() -> SolveFn {
     Arc::new(|job, progress: &dyn Progress| {
         let name = job.scene.name.clone().unwrap_or_default();
         if name.starts_with("panic") {
             panic!("deliberate panic for {name}");
+        }
+        if name.starts_with("busy") {
+            use rayon::prelude::*;
+            let start = std::time::Instant::now();
+            while start.elapsed() < Duration::from_secs(30) {
+                progress.report(Phase::Solve, start.elapsed().as_secs_f64() / 30.0);
+                if progress.cancelled() {
+                    return Err(JobError::Cancelled);
+                }
+                // twenty seconds of small tasks, as in a solve's loop over matrix rows
+                (0..40_000).into_par_iter().for_each(|_| {
+                    if !progress.cancelled() {
+                        std::thread::sleep(Duration::from_millis(1));
+                    }
+                });
+            }
         }
         if name.starts_with("slow") {
             let start = std::time::Instant::now();
