@@ -33,6 +33,9 @@ pub enum JobError {
     Diverged(String),
     #[error("{0}")]
     Unsupported(String),
+    /// The problem outgrew the memory the solver allows itself.
+    #[error("{0}")]
+    TooLarge(String),
 }
 
 impl From<Cancelled> for JobError {

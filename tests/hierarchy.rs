@@ -110,3 +110,41 @@ fn converges_with_links_nearly_linear_in_leaves() {
         }
     }
 }
+
+#[test]
+fn an_emission_region_is_resolved_by_both_hierarchies() {
+    // a light on part of a surface: the elements across its edges go down to the finest
+    // level, so the hierarchy shows the light where the projection method does. One
+    // polynomial over a coarse element spread it over the element and below zero beside it
+    // (flatland, order 1: −0.17 next to the light, 0.70 inside it where the projection has
+    // 1.01; 3d, order 0: 6.4 inside the light where E = 10)
+    let mut flat = scene_file("flatland-parallel");
+    flat["scene"]["surfaces"][0]["emission_region"] = json!([0.3, 0.55]);
+    let mut plates = scene_file("plates-3d");
+    plates["output"] = json!({ "grid": 10 });
+    for (doc, order, res, light) in [
+        (&flat, 1, 64, 1.0),
+        (&flat, 0, 64, 1.0),
+        (&plates, 0, 16, 10.0),
+        (&plates, 1, 16, 10.0),
+    ] {
+        let mut doc = doc.clone();
+        doc["output"]["grid"] = json!(10);
+        let solve = |method: &str| {
+            let d = with_solver(
+                &doc,
+                json!({ "method": method, "order": order, "resolution": res, "epsilon": 1e-3 }),
+            );
+            let o = run(d);
+            o.result.surfaces[0].cells.clone()
+        };
+        let (h, p) = (solve("hierarchical"), solve("projection"));
+        for (a, b) in h.iter().zip(&p) {
+            assert!(a[0] >= 0.0, "order {order}: {h:?}");
+            assert!(
+                (a[0] - b[0]).abs() < 0.01 * light,
+                "order {order}, resolution {res}: hierarchical {h:?}, projection {p:?}"
+            );
+        }
+    }
+}

@@ -636,3 +636,30 @@ fn results_carry_eq6_timings_and_the_hierarchy() {
     assert_eq!(c.kept_entries, c.matrix_entries);
     assert!(c.matrix_entries >= h.links * 4, "{c:?}");
 }
+
+#[test]
+fn a_hierarchy_too_large_for_memory_stops_with_a_clear_error() {
+    // order 6 (2401 numbers per link block) at ε = 1e-6 would take many GiB of links: the
+    // refinement stops at its budget (55 k such links in 1 GiB) and says what to change
+    let mut doc = scene_file("cornell-box");
+    doc["solver"] =
+        json!({ "method": "hierarchical", "order": 6, "resolution": 256, "epsilon": 1e-6 });
+    match job::run(&job(doc), &Silent) {
+        Err(wavrad::job::JobError::TooLarge(m)) => {
+            assert!(m.contains("links") && m.contains("solver.epsilon"), "{m}")
+        }
+        Err(e) => panic!("{e}"),
+        Ok(_) => panic!("solved"),
+    }
+}
+
+#[test]
+fn a_grid_too_large_for_a_result_is_refused_at_its_path() {
+    let mut doc = scene_file("cornell-box");
+    doc["output"]["grid"] = json!(1024);
+    let errors =
+        wavrad::scene::parse_value(&doc, &wavrad::scene::Limits::default()).expect_err("refused");
+    assert!(errors.to_string().contains("/output/grid"), "{errors}");
+    doc["output"]["grid"] = json!(128);
+    assert!(wavrad::scene::parse_value(&doc, &wavrad::scene::Limits::default()).is_ok());
+}

@@ -77,7 +77,14 @@ pub struct Hierarchy<'a> {
     pub elements: Vec<Element>,
     pub links: Vec<Link>,
     pub refinements: usize,
+    /// The most links the refinement may make (their k² transfers in [`LINK_BYTES`]); set
+    /// `too_large` and stop there.
+    max_links: usize,
+    too_large: bool,
 }
+
+/// The memory the links' transfers may take.
+const LINK_BYTES: usize = 1 << 28;
 
 impl<'a> Hierarchy<'a> {
     pub fn new(
@@ -114,10 +121,26 @@ impl<'a> Hierarchy<'a> {
             elements: Vec::new(),
             links: Vec::new(),
             refinements: 0,
+            max_links: LINK_BYTES / (8 * (order + 1).pow(2) + 64),
+            too_large: false,
             geo,
         };
         for i in 0..segments.len() {
             h.push_element(i, [0.0, 1.0], 0);
+        }
+        // an element across an edge of its emission region would spread the light over
+        // itself (and below zero beside it): split down to the finest level along the edges
+        let mut open: Vec<usize> = (0..segments.len()).collect();
+        while let Some(e) = open.pop() {
+            let el = &h.elements[e];
+            let seg = &segments[el.surface];
+            let [r0, r1] = seg.emission_region;
+            let emits = seg.material.emission.iter().any(|&x| x != 0.0);
+            let straddles =
+                el.range[0] < r1 && r0 < el.range[1] && !(r0 <= el.range[0] && el.range[1] <= r1);
+            if emits && straddles && el.level < h.max_level {
+                open.extend(h.split(e));
+            }
         }
         h
     }
@@ -305,9 +328,24 @@ impl<'a> Hierarchy<'a> {
         (resid * self.length(r) * self.length(s)).sqrt()
     }
 
+    /// An error if the refinement stopped at `max_links`.
+    fn within_budget(&self) -> Result<(), JobError> {
+        if self.too_large {
+            return Err(JobError::TooLarge(format!(
+                "the hierarchy needs more than {} links of order {}; raise solver.epsilon or \
+                 lower solver.order or solver.resolution",
+                self.max_links, self.order
+            )));
+        }
+        Ok(())
+    }
+
     /// Links r ← s, refining where the oracle asks; new links have an empty transfer.
     fn refine(&mut self, r: usize, s: usize, emission_only: bool) {
-        if !self.facing(r, s) {
+        if self.links.len() >= self.max_links {
+            self.too_large = true;
+        }
+        if self.too_large || !self.facing(r, s) {
             return;
         }
         let (lr, ls) = (self.elements[r].level, self.elements[s].level);
@@ -578,9 +616,11 @@ pub fn solve(
     let roots = segments.len();
     for r in 0..roots {
         for s in 0..roots {
+            progress.check()?;
             h.refine(r, s, true);
         }
     }
+    h.within_budget()?;
     let mut evaluations = h.transfers(progress)?;
     let mut history = Vec::new();
     let mut converged = h.solve(settings, &mut history, progress)?;
@@ -593,6 +633,7 @@ pub fn solve(
         if !h.rerefine() {
             break;
         }
+        h.within_budget()?;
         h.refinements += 1;
         evaluations += h.transfers(progress)?;
         converged = h.solve(settings, &mut history, progress)?;

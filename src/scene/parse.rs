@@ -716,7 +716,24 @@ fn reference(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Reference> {
 }
 
 /// Checks that involve more than one part of the document.
+/// The most cell means a result may list (about 16 MB of JSON): `grid` goes up to 1024, and
+/// 1024² cells on each of a Cornell box's 16 surfaces would be a 2 GB result.
+pub const MAX_RESULT_CELLS: usize = 1 << 18;
+
 fn cross_checks(w: &mut Walker, job: &Job, limits: &Limits) {
+    let surfaces = job.surface_names().len();
+    let per_surface = match job.scene.kind {
+        SceneKind::ThreeD(_) => job.output.grid * job.output.grid,
+        _ => job.output.grid,
+    };
+    if surfaces * per_surface > MAX_RESULT_CELLS {
+        w.error(
+            "/output/grid",
+            format!(
+                "{surfaces} surfaces × {per_surface} cells is more than the {MAX_RESULT_CELLS} cell means a result may hold"
+            ),
+        );
+    }
     let fredholm_exact = matches!(&job.scene.kind, SceneKind::Fredholm(f) if f.exact.is_some());
     match job.output.reference {
         Some(Reference::Exact) if !fredholm_exact => w.error(

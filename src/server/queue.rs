@@ -659,6 +659,12 @@ impl Queue {
                 StatusCode::UNPROCESSABLE_ENTITY,
                 m,
             ),
+            Ok(Err(JobError::TooLarge(m))) => failure(
+                "too-large",
+                "The problem is too large",
+                StatusCode::UNPROCESSABLE_ENTITY,
+                m,
+            ),
             Err(panic) => {
                 let msg = panic
                     .downcast_ref::<String>()

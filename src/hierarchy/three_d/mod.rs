@@ -72,6 +72,10 @@ pub struct Hierarchy<'g> {
     pub links: Vec<Link>,
     pub rays: u64,
     pub refinements: usize,
+    /// The most links the refinement may make: their blocks (k⁴ numbers each) in 1 GiB.
+    pub max_links: usize,
+    /// Set when the refinement stopped at `max_links`.
+    pub too_large: bool,
 }
 
 impl<'g> Hierarchy<'g> {
@@ -148,13 +152,19 @@ impl<'g> Hierarchy<'g> {
             links: Vec::new(),
             rays: 0,
             refinements: 0,
+            max_links: LINK_BYTES / (8 * k.pow(4) + 64),
+            too_large: false,
         };
         // an element across the outline keeps one polynomial on its exposed part, which the
-        // finest level confines to a strip along it
+        // finest level confines to a strip along it; likewise an element across the edge of
+        // an emission region, whose polynomial would otherwise spread the light over it (and
+        // below zero next to it)
         let mut open: Vec<u32> = (0..quads.len() as u32).collect();
         while let Some(e) = open.pop() {
             let el = &h.elements[e as usize];
-            if matches!(el.exposure, Exposure::Partial(_)) && el.level < h.max_level {
+            let straddles = straddles_emission(&quads[el.piece.surface], el.piece);
+            if (straddles || matches!(el.exposure, Exposure::Partial(_))) && el.level < h.max_level
+            {
                 let first = h.split(e);
                 open.extend(first..first + 4);
             }
@@ -462,6 +472,37 @@ impl<'g> Hierarchy<'g> {
     }
 }
 
+/// The memory the links' blocks may take.
+const LINK_BYTES: usize = 1 << 30;
+
+/// Whether the edge of `quad`'s emission region passes through the inside of `piece`.
+fn straddles_emission(quad: &Quad, piece: Piece) -> bool {
+    if quad.material.emission.iter().all(|&e| e == 0.0) {
+        return false;
+    }
+    let (rs, rt) = quad.emission_region;
+    let overlaps =
+        piece.s[0] < rs[1] && rs[0] < piece.s[1] && piece.t[0] < rt[1] && rt[0] < piece.t[1];
+    let inside =
+        rs[0] <= piece.s[0] && piece.s[1] <= rs[1] && rt[0] <= piece.t[0] && piece.t[1] <= rt[1];
+    overlaps && !inside
+}
+
+/// Why the refinement stopped: the caller's cancel, or the link budget.
+fn stopped(h: &Hierarchy, _: Cancelled) -> JobError {
+    if h.too_large {
+        JobError::TooLarge(format!(
+            "the hierarchy needs more than {} links of order {} ({} GiB of blocks); raise \
+             solver.epsilon or lower solver.order or solver.resolution",
+            h.max_links,
+            h.k - 1,
+            LINK_BYTES >> 30
+        ))
+    } else {
+        JobError::Cancelled
+    }
+}
+
 /// Solves a job by hierarchical wavelet radiosity at the given order and finest resolution.
 pub fn solve(
     job: &Job,
@@ -480,7 +521,7 @@ pub fn solve(
     progress.report(Phase::Refinement, 0.0);
     let geo = Geometry::new(quads);
     let mut h = Hierarchy::new(&geo, quads, order, resolution, job.solver.epsilon);
-    h.link_all(progress)?;
+    h.link_all(progress).map_err(|c| stopped(&h, c))?;
     let mut refine_ms = ms(t);
     let mut solve_ms = 0.0;
     let mut history = Vec::new();
@@ -520,7 +561,7 @@ pub fn solve(
         let t = Instant::now();
         progress.check()?;
         progress.report(Phase::Refinement, (pass + 1) as f64 / MAX_PASSES as f64);
-        let refined = h.rerefine(progress)?;
+        let refined = h.rerefine(progress).map_err(|c| stopped(&h, c))?;
         refine_ms += ms(t);
         last = refined == 0;
     }

@@ -271,6 +271,10 @@ impl Hierarchy<'_> {
     ) -> Result<(), Cancelled> {
         while !pairs.is_empty() {
             progress.check()?;
+            if self.links.len() + out.len() + pairs.len() > self.max_links {
+                self.too_large = true;
+                return Err(Cancelled);
+            }
             // the estimate depends on the pair's shape only: once per class of congruent
             // pairs (the estimate's points are symmetric on the receiver)
             let piece = |e: u32| self.elements[e as usize].piece;
