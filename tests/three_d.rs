@@ -663,3 +663,44 @@ fn a_grid_too_large_for_a_result_is_refused_at_its_path() {
     doc["output"]["grid"] = json!(128);
     assert!(wavrad::scene::parse_value(&doc, &wavrad::scene::Limits::default()).is_ok());
 }
+
+#[test]
+fn the_default_camera_sees_the_fronts_of_the_surfaces() {
+    // without a camera: a single emitting square facing any of the six directions, the two
+    // plates (seen from behind from every side outside: looked at from between them) and
+    // the Cornell box (through its open side, from −z as before) fill much of the image
+    let lit = |doc: serde_json::Value| {
+        let j = job(doc);
+        assert!(j.output.camera.is_none());
+        let out = job::run(&j, &Silent).expect("solves");
+        let img = camera::render(&j, &out, 48, 48);
+        img.pixels().filter(|p| p.0.iter().any(|&c| c > 0)).count() as f64 / (48.0 * 48.0)
+    };
+    let square = |corners: serde_json::Value| {
+        json!({ "scene": { "kind": "3d", "surfaces": [
+            { "name": "light", "corners": corners, "reflectance": 0.5, "emission": 1 }
+        ]}, "solver": { "order": 0, "resolution": 1 } })
+    };
+    for corners in [
+        json!([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]),
+        json!([[0, 0, 0], [0, 1, 0], [1, 1, 0], [1, 0, 0]]),
+        json!([[0, 0, 0], [0, 0, 1], [0, 1, 1], [0, 1, 0]]),
+        json!([[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1]]),
+        json!([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]]),
+        json!([[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]]),
+    ] {
+        let f = lit(square(corners.clone()));
+        assert!(f > 0.2, "{corners}: {f}");
+    }
+    let mut plates = scene_file("plates-3d");
+    plates["output"] = json!({});
+    plates["solver"]["resolution"] = json!(4);
+    let f = lit(plates);
+    assert!(f > 0.5, "plates: {f}");
+    let mut cornell = scene_file("cornell-box");
+    cornell["output"] = json!({});
+    cornell["solver"] =
+        json!({ "method": "hierarchical", "order": 0, "resolution": 8, "epsilon": 1e-2 });
+    let f = lit(cornell);
+    assert!(f > 0.3, "Cornell box: {f}");
+}

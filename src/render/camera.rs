@@ -63,7 +63,7 @@ pub fn render_fields(
         .map(|q| Parallelogram::new(&q.corners))
         .collect();
     let bvh = Bvh::new(&geo);
-    let camera = job.output.camera.unwrap_or_else(|| frame(&geo));
+    let camera = job.output.camera.unwrap_or_else(|| frame(&geo, &bvh));
     let view = View::new(&camera, width, height);
     let smooth: Vec<Option<Smooth>> = fields
         .iter()
@@ -131,8 +131,14 @@ pub fn surface_image(field: &Field, width: u32, height: u32, exposure: f64) -> R
     img
 }
 
-/// A camera that frames the bounding sphere of the scene from −z, up +y, 40°.
-pub fn frame(geo: &[Parallelogram]) -> Camera {
+/// A camera for a document that gives none: one that sees the fronts of the surfaces.
+///
+/// From outside, it frames the scene's bounding sphere at 40° along one of the six axes or
+/// the eight diagonals, −z first (an open box faces it, as in the Cornell box): the first
+/// direction with the most pixels of a coarse probe image on the front of a surface. A scene
+/// seen mostly from behind from every side (a closed room, two plates facing each other)
+/// is looked at from its centre instead, at 90°, along the axis that sees most.
+pub fn frame(geo: &[Parallelogram], bvh: &Bvh) -> Camera {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for q in geo {
@@ -145,14 +151,80 @@ pub fn frame(geo: &[Parallelogram]) -> Camera {
     }
     let center = scale(add(lo, hi), 0.5);
     let radius = 0.5 * norm(sub(hi, lo));
+    let camera = |d: V3, dist: f64, fov_deg: f64| Camera {
+        eye: sub(center, scale(d, dist)),
+        look_at: center,
+        up: if d[1].abs() > 0.9 {
+            [0.0, 0.0, 1.0]
+        } else {
+            [0.0, 1.0, 0.0]
+        },
+        fov_deg,
+    };
+    let axes: [V3; 6] = [
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+    ];
+    let diagonals = (0..8).map(|i| {
+        let sign = |b: usize| if i & b == 0 { 1.0 } else { -1.0 };
+        normalize([sign(1), sign(2), sign(4)])
+    });
+    let best = |cams: Vec<Camera>| {
+        cams.into_iter()
+            .map(|c| (front_facing(bvh, geo, &c), c))
+            .fold(None, |best: Option<(f64, Camera)>, (f, c)| match best {
+                Some((g, _)) if g >= f => best,
+                _ => Some((f, c)),
+            })
+            .expect("candidates")
+    };
     let fov: f64 = 40.0;
     let dist = radius / (0.5 * fov.to_radians()).sin();
-    Camera {
-        eye: sub(center, [0.0, 0.0, dist]),
-        look_at: center,
-        up: [0.0, 1.0, 0.0],
-        fov_deg: fov,
+    let (seen, outside) = best(
+        axes.iter()
+            .copied()
+            .chain(diagonals)
+            .map(|d| camera(d, dist, fov))
+            .collect(),
+    );
+    if seen >= 0.2 {
+        return outside;
     }
+    let (inside_seen, inside) = best(
+        axes.iter()
+            .map(|&d| Camera {
+                eye: center,
+                look_at: add(center, d),
+                ..camera(d, 0.0, 90.0)
+            })
+            .collect(),
+    );
+    if inside_seen > seen {
+        inside
+    } else {
+        outside
+    }
+}
+
+/// The fraction of a 32 × 32 probe image of `camera` that falls on the front of a surface.
+fn front_facing(bvh: &Bvh, geo: &[Parallelogram], camera: &Camera) -> f64 {
+    const N: u32 = 32;
+    let view = View::new(camera, N, N);
+    let mut front = 0;
+    for y in 0..N {
+        for x in 0..N {
+            let d = view.ray(x as f64 + 0.5, y as f64 + 0.5);
+            let hit = bvh.first_hit(view.eye, d, 0.0, f64::INFINITY, [usize::MAX; 2]);
+            if hit.is_some_and(|h| dot(d, geo[h.surface].n) < 0.0) {
+                front += 1;
+            }
+        }
+    }
+    front as f64 / (N * N) as f64
 }
 
 struct View {
