@@ -492,6 +492,9 @@ async fn render_answers_503_past_the_sync_timeout() {
     .await;
     problem(st, &h, &b, StatusCode::SERVICE_UNAVAILABLE);
     assert!(h.contains_key(header::RETRY_AFTER));
+    // the job it goes on as
+    let id = wavrad::server::queue::job_id(&named("slow sync"));
+    assert_eq!(h[header::LOCATION], format!("/api/v1/jobs/{id}").as_str());
     for s in state.queue.list(10) {
         state.queue.delete(&s.id).unwrap();
     }
@@ -511,9 +514,12 @@ async fn load_is_shed_beyond_the_concurrency_limit() {
         }
         tokio::task::yield_now().await;
     }
-    let (st, h, b) = call(&router, get("/healthz")).await;
+    let (st, h, b) = call(&router, get("/api/v1/jobs")).await;
     problem(st, &h, &b, StatusCode::SERVICE_UNAVAILABLE);
     assert!(h.contains_key(header::RETRY_AFTER));
+    // the probes answer all the same: the server is alive, only busy
+    assert_eq!(call(&router, get("/healthz")).await.0, StatusCode::OK);
+    assert_eq!(call(&router, get("/metrics")).await.0, StatusCode::OK);
     state.queue.delete(&id).unwrap();
     let _ = busy.await;
     assert_eq!(call(&router, get("/healthz")).await.0, StatusCode::OK);

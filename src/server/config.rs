@@ -48,7 +48,8 @@ pub struct Config {
     /// Where job records and results are kept (created if missing).
     #[arg(long, env = "WAVRAD_DATA_DIR", default_value = "wavrad-data")]
     pub data_dir: PathBuf,
-    /// HTTP requests handled at once; more wait, and beyond twice this many are shed with 503.
+    /// HTTP requests handled at once; beyond this many, requests are answered 503 at once
+    /// (the probes and /metrics are not counted).
     #[arg(long, env = "WAVRAD_MAX_CONCURRENT_REQUESTS", default_value_t = 256)]
     pub max_concurrent_requests: usize,
     /// On SIGTERM, how long running solves may take to finish before they are stopped and

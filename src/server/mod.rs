@@ -73,7 +73,7 @@ impl AppState {
 
 /// The router with every layer: tracing, problem documents for every error, load shedding in
 /// front of a global concurrency limit (which would otherwise queue), a request time-out and
-/// the body limit.
+/// the body limit; the probes (`/healthz`, `/readyz`, `/metrics`) skip the limits.
 pub fn app(state: AppState) -> Router {
     let config = state.config.clone();
     let limits = ServiceBuilder::new()
@@ -85,9 +85,10 @@ pub fn app(state: AppState) -> Router {
             config.max_concurrent_requests,
         ))
         .timeout(config.request_timeout());
-    routes::router(state)
+    routes::router(state.clone())
         .layer(RequestBodyLimitLayer::new(config.max_body_bytes))
         .layer(limits)
+        .merge(routes::probes(state))
         .layer(axum::middleware::map_response(problem::problem_everywhere))
         .layer(TraceLayer::new_for_http())
 }

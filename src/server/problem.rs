@@ -41,6 +41,9 @@ pub struct Problem {
     /// Seconds after which to try again (429 and 503).
     #[serde(skip)]
     pub retry_after: Option<u64>,
+    /// Where the thing the problem is about goes on (a render that became a job).
+    #[serde(skip)]
+    pub location: Option<String>,
 }
 
 impl Problem {
@@ -53,6 +56,7 @@ impl Problem {
             detail: detail.into(),
             errors: Vec::new(),
             retry_after: None,
+            location: None,
         }
     }
 
@@ -74,6 +78,11 @@ impl Problem {
     pub fn with_type(mut self, kind: &str, title: &str) -> Problem {
         self.kind = format!("/problems/{kind}");
         self.title = title.into();
+        self
+    }
+
+    pub fn location(mut self, uri: String) -> Problem {
+        self.location = Some(uri);
         self
     }
 
@@ -110,6 +119,9 @@ impl IntoResponse for Problem {
         if let Some(s) = self.retry_after {
             res.headers_mut()
                 .insert(header::RETRY_AFTER, HeaderValue::from(s));
+        }
+        if let Some(v) = self.location.and_then(|l| HeaderValue::from_str(&l).ok()) {
+            res.headers_mut().insert(header::LOCATION, v);
         }
         res
     }

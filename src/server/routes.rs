@@ -29,9 +29,6 @@ pub fn router(state: AppState) -> Router {
         .route("/api/v1/jobs/{id}/surfaces/{file}", get(job_surface))
         .route("/api/v1/render", axum::routing::post(render_now))
         .route("/api/v1/openapi.json", get(openapi))
-        .route("/healthz", get(healthz))
-        .route("/readyz", get(readyz))
-        .route("/metrics", get(metrics))
         .route("/", get(index))
         .route("/static/{file}", get(static_file))
         .route("/scenes/{file}", get(scene_file))
@@ -40,6 +37,20 @@ pub fn router(state: AppState) -> Router {
             super::metrics::count_requests,
         ))
         .fallback(|| async { Problem::new(StatusCode::NOT_FOUND, "no such route") })
+        .with_state(state)
+}
+
+/// The probes and the metrics: answered outside the request limits, so that a busy server
+/// still says it is alive.
+pub fn probes(state: AppState) -> Router {
+    Router::new()
+        .route("/healthz", get(healthz))
+        .route("/readyz", get(readyz))
+        .route("/metrics", get(metrics))
+        .route_layer(axum::middleware::from_fn_with_state(
+            state.metrics.clone(),
+            super::metrics::count_requests,
+        ))
         .with_state(state)
 }
 
@@ -402,6 +413,7 @@ pub async fn render_now(
             ),
         )
         .with_type("sync-timeout", "Too slow to answer at once")
+        .location(format!("/api/v1/jobs/{}", entry.id))
         .retry_after(limit.as_secs().max(1)));
     };
     match status.state {
