@@ -25,7 +25,8 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Check a job document: prints every error as `PATH: message`; exit 2 when invalid.
+    /// Check a job document against the limits of `render` (the library's, more generous than
+    /// a server's defaults): prints every error as `PATH: message`; exit 2 when invalid.
     Validate { doc: PathBuf },
 }
 

@@ -593,6 +593,9 @@ async fn operations_routes() {
         .unwrap()
         .starts_with("text/html"));
     let html = String::from_utf8(b.to_vec()).unwrap();
+    // the form's order goes as high as this server allows
+    let max_order = format!("max=\"{}\"", state.config.max_order);
+    assert!(html.contains(&max_order), "{max_order}");
     for id in [
         "scene-select",
         "doc",

@@ -507,8 +507,12 @@ pub async fn metrics(State(state): State<AppState>) -> Response {
 
 /// The web page.
 #[utoipa::path(get, path = "/", tag = "operations", responses((status = 200, body = String, content_type = "text/html", description = "the web page")))]
-pub async fn index() -> Html<&'static str> {
-    Html(include_str!("../../static/index.html"))
+/// The page, with this server's limits in its form.
+pub async fn index(State(state): State<AppState>) -> Html<String> {
+    Html(
+        include_str!("../../static/index.html")
+            .replace("{{max_order}}", &state.config.max_order.to_string()),
+    )
 }
 
 async fn static_file(Path(file): Path<String>) -> Result<Response, Problem> {
