@@ -40,10 +40,10 @@ pub struct Problem {
     pub errors: Vec<PathError>,
     /// Seconds after which to try again (429 and 503).
     #[serde(skip)]
-    pub retry_after: Option<u64>,
+    pub retry_after: Option<u32>,
     /// Where the thing the problem is about goes on (a render that became a job).
     #[serde(skip)]
-    pub location: Option<String>,
+    pub location: Option<Box<HeaderValue>>,
 }
 
 impl Problem {
@@ -82,12 +82,12 @@ impl Problem {
     }
 
     pub fn location(mut self, uri: String) -> Problem {
-        self.location = Some(uri);
+        self.location = HeaderValue::from_str(&uri).ok().map(Box::new);
         self
     }
 
     pub fn retry_after(mut self, seconds: u64) -> Problem {
-        self.retry_after = Some(seconds);
+        self.retry_after = Some(u32::try_from(seconds).unwrap_or(u32::MAX));
         self
     }
 
@@ -120,8 +120,8 @@ impl IntoResponse for Problem {
             res.headers_mut()
                 .insert(header::RETRY_AFTER, HeaderValue::from(s));
         }
-        if let Some(v) = self.location.and_then(|l| HeaderValue::from_str(&l).ok()) {
-            res.headers_mut().insert(header::LOCATION, v);
+        if let Some(v) = self.location {
+            res.headers_mut().insert(header::LOCATION, *v);
         }
         res
     }
