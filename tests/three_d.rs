@@ -630,11 +630,16 @@ fn results_carry_eq6_timings_and_the_hierarchy() {
         h.elements > h.leaves && h.refinements > 0 && h.rays > 0,
         "{h:?}"
     );
-    // the walls touch along their edges: left out of eq. (5), which the hierarchy does not
-    // compute anyway; the links stand in for the matrix's entries
+    // the coefficients: the space of the leaves' linear polynomials (4 per leaf), whose
+    // full matrix the links replace by a few coefficients per leaf pair they join
     let c = &out.result.coefficients;
-    assert_eq!(c.kept_entries, c.matrix_entries);
-    assert!(c.matrix_entries >= h.links * 4, "{c:?}");
+    assert_eq!(c.basis_size, 4 * h.leaves);
+    assert_eq!(c.matrix_entries, c.basis_size * c.basis_size);
+    assert!(
+        c.kept_entries <= 16 * h.links && c.kept_entries > 8 * h.links,
+        "{c:?}"
+    );
+    assert!(c.sparsity_ratio > 0.99, "{c:?}");
 }
 
 #[test]

@@ -677,7 +677,7 @@ pub fn solve(
         emission,
         irradiance,
         basis_size: leaves * k,
-        matrix_entries: h.links.len() * k * k,
+        matrix_entries: (leaves * k) * (leaves * k),
         kept_entries: mags.iter().filter(|v| **v > 0.0).count(),
         cut: 0.0,
         magnitudes,

@@ -579,7 +579,6 @@ pub fn solve(
     let emission = h.fields(|e| e.e.clone());
     let zero = vec![[0.0; 3]; h.k * h.k];
     let irradiance = h.fields(|e| e.reported(&e.h, &zero));
-    let kk = h.k * h.k;
     let mut sorted: Vec<f64> = h
         .links
         .iter()
@@ -609,9 +608,15 @@ pub fn solve(
         shown,
         emission,
         irradiance,
-        basis_size: h.elements.len() * kk,
-        matrix_entries: h.links.len() * kk * kk,
-        kept_entries: h.links.len() * kk * kk,
+        // the space is the leaves' polynomials; the projection method would hold all of its
+        // basis_size² couplings, the links hold the nonzero ones they keep
+        basis_size: leaf_b.len(),
+        matrix_entries: leaf_b.len() * leaf_b.len(),
+        kept_entries: h
+            .links
+            .iter()
+            .map(|l| l.block.iter().filter(|v| **v != 0.0).count())
+            .sum(),
         cut: 0.0,
         magnitudes,
         picture: Some(h.picture(512)),
