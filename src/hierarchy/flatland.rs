@@ -269,8 +269,19 @@ impl<'a> Hierarchy<'a> {
         let (li, lj) = (&self.geo.lines[er.surface], &self.geo.lines[es.surface]);
         let pair = self.geo.pair(er.surface, es.surface);
         let occ: Vec<Line> = pair.occluders.iter().map(|&o| self.geo.lines[o]).collect();
-        // a shadow boundary can fall between samples: sample occluded pairs three times denser
-        let rule = Rule::gauss(if occ.is_empty() { k + 2 } else { 3 * (k + 2) });
+        // a shadow boundary can fall between samples, and so can the line where one element
+        // crosses the other's line (the kernel has a kink there, and the source's B may
+        // differ on the two sides, which a coarse link would average): sample such pairs
+        // three times denser
+        let straddles = |range: [f64; 2], front: Option<[f64; 2]>| {
+            front.is_some_and(|f| f[0] > range[0] || f[1] < range[1])
+        };
+        let crossed = straddles(er.range, pair.front_i) || straddles(es.range, pair.front_j);
+        let rule = Rule::gauss(if occ.is_empty() && !crossed {
+            k + 2
+        } else {
+            3 * (k + 2)
+        });
         let q = rule.len();
         let mut kv = vec![0.0; q * q];
         let mut pieces = Pieces::new();
