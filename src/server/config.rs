@@ -33,11 +33,11 @@ pub struct Config {
     /// Jobs that may wait for a worker; one more answers 429 with Retry-After.
     #[arg(long, env = "WAVRAD_QUEUE_CAPACITY", default_value_t = 64)]
     pub queue_capacity: usize,
-    /// Jobs solved at once (threads of the solver pool); 0 = one per core.
+    /// Jobs solved at once (each on its own pool of a thread per core); 0 = one per core.
     #[arg(long, env = "WAVRAD_WORKERS", default_value_t = 0)]
     pub workers: usize,
     /// A solve running longer fails (e.g. 300, 300s, 5m, 2h).
-    #[arg(long, env = "WAVRAD_JOB_TIMEOUT", default_value = "300s", value_parser = parse_duration)]
+    #[arg(long, env = "WAVRAD_JOB_TIMEOUT", default_value = "300s", value_parser = parse_positive_duration)]
     pub job_timeout: Duration,
     /// Longest wait of `POST /api/v1/render` for its result before answering 503.
     #[arg(long, env = "WAVRAD_SYNC_TIMEOUT", default_value = "30s", value_parser = parse_duration)]
@@ -119,6 +119,15 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
     Duration::try_from_secs_f64(seconds).map_err(|e| e.to_string())
 }
 
+/// [`parse_duration`], refusing zero (a job timeout of zero would fail every job).
+pub fn parse_positive_duration(text: &str) -> Result<Duration, String> {
+    let d = parse_duration(text)?;
+    if d.is_zero() {
+        return Err("must be longer than zero".into());
+    }
+    Ok(d)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -134,6 +143,16 @@ mod tests {
         );
         assert!(parse_duration("soon").is_err());
         assert!(parse_duration("5y").is_err());
+    }
+
+    #[test]
+    fn a_job_timeout_of_zero_is_refused() {
+        assert!(parse_positive_duration("0s").is_err());
+        assert!(parse_positive_duration("0").is_err());
+        assert_eq!(
+            parse_positive_duration("1ms").unwrap(),
+            Duration::from_millis(1)
+        );
     }
 
     #[test]
