@@ -20,7 +20,7 @@ use std::convert::Infallible;
 use std::sync::Arc;
 
 pub fn router(state: AppState) -> Router {
-    Router::new()
+    let router = Router::new()
         .route("/api/v1/jobs", get(list_jobs).post(create_job))
         .route("/api/v1/jobs/{id}", get(job_status).delete(delete_job))
         .route("/api/v1/jobs/{id}/events", get(job_events))
@@ -31,11 +31,8 @@ pub fn router(state: AppState) -> Router {
         .route("/api/v1/openapi.json", get(openapi))
         .route("/", get(index))
         .route("/static/{file}", get(static_file))
-        .route("/scenes/{file}", get(scene_file))
-        .route_layer(axum::middleware::from_fn_with_state(
-            state.metrics.clone(),
-            super::metrics::count_requests,
-        ))
+        .route("/scenes/{file}", get(scene_file));
+    counted(router, &state)
         .fallback(|| async { Problem::new(StatusCode::NOT_FOUND, "no such route") })
         .with_state(state)
 }
@@ -43,15 +40,19 @@ pub fn router(state: AppState) -> Router {
 /// The probes and the metrics: answered outside the request limits, so that a busy server
 /// still says it is alive.
 pub fn probes(state: AppState) -> Router {
-    Router::new()
+    let router = Router::new()
         .route("/healthz", get(healthz))
         .route("/readyz", get(readyz))
-        .route("/metrics", get(metrics))
-        .route_layer(axum::middleware::from_fn_with_state(
-            state.metrics.clone(),
-            super::metrics::count_requests,
-        ))
-        .with_state(state)
+        .route("/metrics", get(metrics));
+    counted(router, &state).with_state(state)
+}
+
+/// The routes of `router`, counted in the request metrics.
+fn counted(router: Router<AppState>, state: &AppState) -> Router<AppState> {
+    router.route_layer(axum::middleware::from_fn_with_state(
+        state.metrics.clone(),
+        super::metrics::count_requests,
+    ))
 }
 
 /// Reads and validates a job document: 415 unless the content type is JSON, 413 past
