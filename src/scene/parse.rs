@@ -93,51 +93,69 @@ fn scene(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Scene> {
                 );
                 return None;
             }
+            // the checks across surfaces run over those that parsed, so that a document with
+            // a bad field elsewhere still hears of them
             if k == "flatland" {
                 let segs: Vec<Option<Segment>> = list
                     .iter()
                     .enumerate()
                     .map(|(i, s)| segment(w, s, &index(p, i)))
                     .collect();
+                check_surfaces(
+                    w,
+                    list,
+                    segs.iter()
+                        .map(|s| s.as_ref().map(|s| (&s.name, &s.material))),
+                );
                 let segs: Option<Vec<Segment>> = segs.into_iter().collect();
-                let segs = segs?;
-                check_names(w, segs.iter().map(|s| s.name.as_str()));
-                check_emission(w, segs.iter().map(|s| &s.material));
-                SceneKind::Flatland(segs)
+                SceneKind::Flatland(segs?)
             } else {
                 let quads: Vec<Option<Quad>> = list
                     .iter()
                     .enumerate()
                     .map(|(i, s)| quad(w, s, &index(p, i)))
                     .collect();
+                check_surfaces(
+                    w,
+                    list,
+                    quads
+                        .iter()
+                        .map(|q| q.as_ref().map(|q| (&q.name, &q.material))),
+                );
                 let quads: Option<Vec<Quad>> = quads.into_iter().collect();
-                let quads = quads?;
-                check_names(w, quads.iter().map(|q| q.name.as_str()));
-                check_emission(w, quads.iter().map(|q| &q.material));
-                SceneKind::ThreeD(quads)
+                SceneKind::ThreeD(quads?)
             }
         }
     };
     Some(Scene { name, kind })
 }
 
-fn check_names<'a>(w: &mut Walker, names: impl Iterator<Item = &'a str>) {
+/// Names are unique, and some surface emits: over the surfaces that parsed (`None` for the
+/// others). A surface that did not parse counts as emitting if its `emission` reads as a
+/// positive number, so that its own error is not followed by a wrong one.
+fn check_surfaces<'a>(
+    w: &mut Walker,
+    raw: &[Value],
+    parsed: impl Iterator<Item = Option<(&'a String, &'a Material)>>,
+) {
     let mut seen = std::collections::HashMap::new();
-    for (i, n) in names.enumerate() {
-        if let Some(first) = seen.insert(n, i) {
+    let mut any = false;
+    for (i, (surface, raw)) in parsed.zip(raw).enumerate() {
+        let Some((n, m)) = surface else {
+            let positive = |v: &Value| v.as_f64().is_some_and(|x| x > 0.0);
+            any |= raw.get("emission").is_some_and(|e| {
+                positive(e) || e.as_array().is_some_and(|a| a.iter().any(positive))
+            });
+            continue;
+        };
+        any |= m.emission.iter().any(|e| *e > 0.0);
+        if let Some(first) = seen.insert(n.as_str(), i) {
             w.error(
                 format!("/scene/surfaces/{i}/name"),
                 format!("duplicate surface name \"{n}\" (also surface {first})"),
             );
-            seen.insert(n, first);
+            seen.insert(n.as_str(), first);
         }
-    }
-}
-
-fn check_emission<'a>(w: &mut Walker, materials: impl Iterator<Item = &'a Material>) {
-    let mut any = false;
-    for m in materials {
-        any |= m.emission.iter().any(|e| *e > 0.0);
     }
     if !any {
         w.error(
@@ -439,6 +457,8 @@ fn solver(w: &mut Walker, v: &Value, limits: &Limits, kind: Option<&str>) -> Opt
         },
         None => d.basis,
     };
+    // the method and the basis say whether the resolution must be a power of two
+    let known = ok;
     let mut int = |key: &str, lo: u64, hi: u64, default: usize, ok: &mut bool| match get(key) {
         Some((v, p)) => w.integer(v, &p, lo, hi).unwrap_or_else(|| {
             *ok = false;
@@ -449,17 +469,19 @@ fn solver(w: &mut Walker, v: &Value, limits: &Limits, kind: Option<&str>) -> Opt
     // the integrators keep k = m + 1 ≤ 16 coefficients on the stack
     let max_order = limits.max_order.min(15) as u64;
     let order = int("order", 0, max_order, d.order, &mut ok);
+    let mut resolution_ok = true;
     let resolution = int(
         "resolution",
         1,
         limits.max_resolution as u64,
         d.resolution,
-        &mut ok,
+        &mut resolution_ok,
     );
+    ok &= resolution_ok;
     let max_iterations = int("max_iterations", 1, 1_000_000, d.max_iterations, &mut ok);
     let quadrature = int("quadrature", 1, 64, order + 2, &mut ok);
     let needs_pow2 = basis == BasisKind::Wavelet || method == Method::Hierarchical;
-    if ok && needs_pow2 && !resolution.is_power_of_two() {
+    if known && resolution_ok && needs_pow2 && !resolution.is_power_of_two() {
         let why = if method == Method::Hierarchical {
             "the hierarchical method"
         } else {
@@ -867,6 +889,10 @@ mod tests {
             "/output/grid",
             "/output/image/raw",
             "/output/image/mesh",
+            // no surface emits (a misspelt key, a negative value), and 12 is not a power of
+            // two for the default wavelet basis
+            "/scene/surfaces",
+            "/solver/resolution",
         ];
         want.sort();
         assert_eq!(got, want);
@@ -897,6 +923,31 @@ mod tests {
             {"name": "a", "segment": [[0, 0], [1, 0]], "reflectance": 0.5, "emission": 1},
             {"name": "a", "segment": [[0, 1], [1, 1]], "reflectance": 0.5}]}});
         assert_eq!(errors(dup), ["/scene/surfaces/1/name"]);
+        // each beside an error in another field: all are reported
+        let mut got = errors(json!({"scene": {"kind": "flatland", "surfaces": [
+            {"name": "a", "segment": [[0, 0], [1, 0]], "reflectance": 1.5},
+            {"name": "a", "segment": [[0, 1], [1, 1]], "reflectance": 0.5}]},
+            "solver": {"order": 99, "resolution": 12}}));
+        got.sort();
+        assert_eq!(
+            got,
+            [
+                "/scene/surfaces",
+                "/scene/surfaces/0/reflectance",
+                "/solver/order",
+                "/solver/resolution"
+            ]
+        );
+        // a surface that did not parse still counts as emitting if its emission says so (and
+        // its name is unknown, so no duplicate); a misspelt basis does not make the resolution
+        // wrong
+        let lit = json!({"scene": {"kind": "flatland", "surfaces": [
+            {"name": "a", "segment": [[0, 0], [1, 0]], "reflectance": 1.5, "emission": [0, 2, 0]},
+            {"name": "a", "segment": [[0, 1], [1, 1]], "reflectance": 0.5}]},
+            "solver": {"basis": "scalng", "resolution": 12}});
+        let mut got = errors(lit);
+        got.sort();
+        assert_eq!(got, ["/scene/surfaces/0/reflectance", "/solver/basis"]);
     }
 
     #[test]
