@@ -30,6 +30,10 @@ fn get(uri: &str) -> Request<Body> {
     Request::get(uri).body(Body::empty()).unwrap()
 }
 
+fn delete(uri: &str) -> Request<Body> {
+    Request::delete(uri).body(Body::empty()).unwrap()
+}
+
 fn json(bytes: &Bytes) -> Value {
     serde_json::from_slice(bytes)
         .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(bytes)))
@@ -140,13 +144,7 @@ async fn a_job_runs_and_yields_its_result_and_images() {
     assert_eq!(list.as_array().unwrap().len(), 1);
     assert_eq!(list[0]["id"], id);
 
-    let (st, _, _) = call(
-        &router,
-        Request::delete(format!("/api/v1/jobs/{id}"))
-            .body(Body::empty())
-            .unwrap(),
-    )
-    .await;
+    let (st, _, _) = call(&router, delete(&format!("/api/v1/jobs/{id}"))).await;
     assert_eq!(st, StatusCode::NO_CONTENT);
     let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}"))).await;
     problem(st, &h, &b, StatusCode::NOT_FOUND);
@@ -255,13 +253,7 @@ async fn unknown_jobs_and_routes_are_404() {
         let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}{path}"))).await;
         problem(st, &h, &b, StatusCode::NOT_FOUND);
     }
-    let (st, h, b) = call(
-        &router,
-        Request::delete(format!("/api/v1/jobs/{id}"))
-            .body(Body::empty())
-            .unwrap(),
-    )
-    .await;
+    let (st, h, b) = call(&router, delete(&format!("/api/v1/jobs/{id}"))).await;
     problem(st, &h, &b, StatusCode::NOT_FOUND);
     let (st, h, b) = call(&router, get("/no/such/route")).await;
     problem(st, &h, &b, StatusCode::NOT_FOUND);
@@ -286,13 +278,7 @@ async fn workers_solve_jobs_at_once_beside_a_busy_one() {
         state.queue.get(&busy).unwrap().status().state,
         JobState::Running
     );
-    let (st, _, _) = call(
-        &router,
-        Request::delete(format!("/api/v1/jobs/{busy}"))
-            .body(Body::empty())
-            .unwrap(),
-    )
-    .await;
+    let (st, _, _) = call(&router, delete(&format!("/api/v1/jobs/{busy}"))).await;
     assert_eq!(st, StatusCode::NO_CONTENT);
 }
 
@@ -325,13 +311,7 @@ async fn artifacts_before_success_are_409_and_a_running_job_cancels_within_a_sec
 
     let entry = state.queue.get(&id).unwrap();
     let t = Instant::now();
-    let (st, _, _) = call(
-        &router,
-        Request::delete(format!("/api/v1/jobs/{id}"))
-            .body(Body::empty())
-            .unwrap(),
-    )
-    .await;
+    let (st, _, _) = call(&router, delete(&format!("/api/v1/jobs/{id}"))).await;
     assert_eq!(st, StatusCode::NO_CONTENT);
     // The solver thread lets go of the job when its solve has stopped.
     while std::sync::Arc::strong_count(&entry) > 1 {

@@ -477,15 +477,10 @@ const LINK_BYTES: usize = 1 << 30;
 
 /// Whether the edge of `quad`'s emission region passes through the inside of `piece`.
 fn straddles_emission(quad: &Quad, piece: Piece) -> bool {
-    if quad.material.emission.iter().all(|&e| e == 0.0) {
-        return false;
-    }
     let (rs, rt) = quad.emission_region;
-    let overlaps =
-        piece.s[0] < rs[1] && rs[0] < piece.s[1] && piece.t[0] < rt[1] && rt[0] < piece.t[1];
     let inside =
         rs[0] <= piece.s[0] && piece.s[1] <= rs[1] && rt[0] <= piece.t[0] && piece.t[1] <= rt[1];
-    overlaps && !inside
+    refine::peak_emission(quad, piece) > 0.0 && !inside
 }
 
 /// Why the refinement stopped: the caller's cancel, or the link budget.
