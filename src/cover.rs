@@ -97,7 +97,7 @@ impl Mask {
     pub fn of_scene(quads: &[Parallelogram], bvh: &Bvh, res: usize) -> Vec<Option<Mask>> {
         (0..quads.len())
             .map(|i| {
-                stood_on(quads, i)
+                (!contacts(quads, i).is_empty())
                     .then(|| Mask::probe(quads, bvh, i, res))
                     .filter(|m| m.cells.iter().any(|c| *c != Cell::Open))
             })
@@ -338,21 +338,55 @@ fn pseudo_inverse(g: &[f64], n: usize) -> Vec<f64> {
     out
 }
 
-/// Whether another surface stands on surface `i`: one of its edges lies in i's plane and
-/// inside it, away from i's own edges.
-fn stood_on(quads: &[Parallelogram], i: usize) -> bool {
+/// The lines where other surfaces stand on surface `i`: each edge of another surface that
+/// lies in i's plane with its midpoint inside i, away from i's own edges, as its two ends'
+/// (s, t). Across such a line the radiosity of i may jump: the surface standing there hides
+/// half of the hemisphere from the points next to it, and may shade one side of it.
+pub fn contacts(quads: &[Parallelogram], i: usize) -> Vec<[[f64; 2]; 2]> {
     let q = &quads[i];
     let tol = 1e-9 * q.diameter();
     let inside = |x: f64| (1e-6..1.0 - 1e-6).contains(&x);
-    quads.iter().enumerate().any(|(j, o)| {
+    let mut lines = Vec::new();
+    for (j, o) in quads.iter().enumerate() {
+        if j == i {
+            continue;
+        }
         let c = o.piece([0.0, 1.0], [0.0, 1.0]);
-        j != i
-            && (0..4).any(|e| {
-                let (a, b) = (c[e], c[(e + 1) % 4]);
-                let (s, t) = q.params(scale(add(a, b), 0.5));
-                q.side(a).abs() < tol && q.side(b).abs() < tol && inside(s) && inside(t)
-            })
-    })
+        for e in 0..4 {
+            let (a, b) = (c[e], c[(e + 1) % 4]);
+            let (s, t) = q.params(scale(add(a, b), 0.5));
+            if q.side(a).abs() < tol && q.side(b).abs() < tol && inside(s) && inside(t) {
+                let (pa, pb) = (q.params(a), q.params(b));
+                lines.push([[pa.0, pa.1], [pb.0, pb.1]]);
+            }
+        }
+    }
+    lines
+}
+
+/// Whether the segment `line` of (s, t) meets the closed piece `[s0, s1] × [t0, t1]`
+/// (Liang–Barsky clipping).
+pub fn meets(line: &[[f64; 2]; 2], s: [f64; 2], t: [f64; 2]) -> bool {
+    let [a, b] = *line;
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+    for (axis, range) in [(0, s), (1, t)] {
+        for (p, q) in [
+            (-d[axis], a[axis] - range[0]),
+            (d[axis], range[1] - a[axis]),
+        ] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    return false;
+                }
+            } else if p < 0.0 {
+                lo = lo.max(q / p);
+            } else {
+                hi = hi.min(q / p);
+            }
+        }
+    }
+    lo <= hi
 }
 
 /// Whether the point (s, t) of surface `i` is covered: five rays over its hemisphere all
@@ -427,6 +461,33 @@ mod tests {
         }
         assert_eq!(m.exposure([0.375, 0.5], [0.25, 0.5], 2), Exposure::Covered);
         assert_eq!(m.exposure([0.0, 0.25], [0.0, 0.25], 2), Exposure::Open);
+    }
+
+    #[test]
+    fn the_lines_where_a_box_stands_are_its_feet() {
+        // the foot [2, 5] × [3, 4.5] (x × z); the floor's s runs along z and t along x
+        let quads = floor_with_box([2.0, 3.0], [5.0, 4.5]);
+        let lines = contacts(&quads, 0);
+        assert_eq!(lines.len(), 4, "{lines:?}");
+        let (s0, s1, t0, t1) = (3.0 / 8.0, 4.5 / 8.0, 2.0 / 8.0, 5.0 / 8.0);
+        for [a, b] in &lines {
+            for p in [a, b] {
+                let on_s = (p[0] - s0).abs() < 1e-12 || (p[0] - s1).abs() < 1e-12;
+                let on_t = (p[1] - t0).abs() < 1e-12 || (p[1] - t1).abs() < 1e-12;
+                assert!(on_s && on_t, "{p:?} is a corner of the foot");
+            }
+        }
+        // no face stands on another, nor on the top
+        assert!((1..quads.len()).all(|i| contacts(&quads, i).is_empty()));
+        // a piece touches a line when the line crosses it, runs along its edge or ends in it
+        let line = [[0.25, 0.25], [0.75, 0.5]];
+        assert!(meets(&line, [0.0, 0.5], [0.0, 0.5]));
+        assert!(meets(&line, [0.7, 0.8], [0.4, 0.6]));
+        assert!(!meets(&line, [0.0, 0.2], [0.0, 1.0]));
+        assert!(!meets(&line, [0.5, 1.0], [0.0, 0.3]));
+        assert!(meets(&[[0.5, 0.0], [0.5, 1.0]], [0.0, 0.5], [0.2, 0.3]));
+        assert!(meets(&[[0.5, 0.0], [0.5, 1.0]], [0.5, 1.0], [0.2, 0.3]));
+        assert!(!meets(&[[0.5, 0.0], [0.5, 1.0]], [0.6, 1.0], [0.2, 0.3]));
     }
 
     #[test]

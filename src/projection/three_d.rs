@@ -90,6 +90,12 @@ impl Geometry {
         self.visibility_over(a, None, b, seed, grid, rays)
     }
 
+    /// Whether no surface can come between pieces `a` and `b` (the hull test alone).
+    pub fn unoccluded(&self, a: Piece, b: Piece) -> bool {
+        let cand = &self.occluders[a.surface * self.len() + b.surface];
+        !visibility3d::any_occluder(&self.quads, a, b, cand)
+    }
+
     /// [`Geometry::visibility`] over the exposed part of `a` only, where `covered` marks a
     /// covered part of its surface ([`crate::cover`]).
     pub fn visibility_over(
@@ -101,8 +107,7 @@ impl Geometry {
         grid: usize,
         rays: &mut u64,
     ) -> Seen {
-        let cand = &self.occluders[a.surface * self.len() + b.surface];
-        if !visibility3d::any_occluder(&self.quads, a, b, cand) {
+        if self.unoccluded(a, b) {
             return Seen::CLEAR;
         }
         visibility3d::visible_fraction_over(&self.bvh, a, covered, b, grid, seed, rays)

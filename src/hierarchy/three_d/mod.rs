@@ -68,6 +68,8 @@ pub struct Hierarchy<'g> {
     pub evaluations: std::sync::atomic::AtomicU64,
     /// The covered part of each surface that a solid stands on ([`crate::cover`]).
     pub masks: Vec<Option<Mask>>,
+    /// The lines where other surfaces stand on each surface ([`crate::cover::contacts`]).
+    pub contacts: Vec<Vec<[[f64; 2]; 2]>>,
     pub elements: Vec<Element>,
     pub links: Vec<Link>,
     pub rays: u64,
@@ -148,6 +150,9 @@ impl<'g> Hierarchy<'g> {
             evaluations: std::sync::atomic::AtomicU64::new(0),
             hidden: Vec::new(),
             masks,
+            contacts: (0..quads.len())
+                .map(|i| crate::cover::contacts(&geo.quads, i))
+                .collect(),
             elements,
             links: Vec::new(),
             rays: 0,

@@ -12,7 +12,9 @@
 //! with F̂ the largest point-to-piece form factor from a few points of R to S (in closed
 //! form), d the larger diameter and dist the distance of the two pieces, and D_S the root mean
 //! square of B on S minus its polynomial there (the wavelet detail below S). A partly visible
-//! pair loses the smoothness factor (a shadow edge is not a polynomial). w_R = 1 when S emits;
+//! pair loses the smoothness factor (a shadow edge is not a polynomial), and so does a receiver
+//! along a line where another surface stands on its surface, when anything may come between it
+//! and S: it is split before the source. w_R = 1 when S emits;
 //! for inter-reflected light it is the number of non-emitting surfaces facing R's surface: the
 //! tolerance is shared among them, because R gathers from all of them and their errors add up
 //! with one sign (a coarse link averages a source's bright spot over a kernel that peaks at
@@ -180,6 +182,14 @@ impl Hierarchy<'_> {
             .is_some_and(|m| !m.covered_behind(&self.geo.quads[p.surface], p.s, p.t, source))
     }
 
+    /// Whether element `e` touches a line where another surface stands on its surface.
+    fn at_contact(&self, e: u32) -> bool {
+        let p = self.elements[e as usize].piece;
+        self.contacts[p.surface]
+            .iter()
+            .any(|line| crate::cover::meets(line, p.s, p.t))
+    }
+
     fn splittable(&self, e: u32) -> bool {
         self.elements[e as usize].level < self.max_level
     }
@@ -221,6 +231,16 @@ impl Hierarchy<'_> {
             self.elements[r as usize].piece,
             self.elements[s as usize].piece,
         );
+        // a receiver along a line where another surface stands on it gets no smoothness
+        // credit when something may come between it and the source (that surface, most
+        // often), and is split first: the points next to the line see less of the source
+        // than rays from inside the receiver can tell. No rays are needed to decide that
+        let contact = self.at_contact(r) && !self.geo.unoccluded(pr, ps);
+        if contact && self.splittable(r) {
+            if let Some(Verdict::Split { .. }) = split(Factors { f, smooth: 1.0 }) {
+                return (Verdict::Split { source: false }, 0);
+            }
+        }
         let seed = pair_seed(self.identity(r), self.identity(s));
         let mut rays = 0;
         // a link between big pieces carries much of the light, and its visible fraction
@@ -247,7 +267,11 @@ impl Hierarchy<'_> {
         // light may pass through a gap none of them found): no smoothness credit
         let x = Factors {
             f,
-            smooth: if v.whole < 1.0 { 1.0 } else { smooth },
+            smooth: if v.whole < 1.0 || contact {
+                1.0
+            } else {
+                smooth
+            },
         };
         if let Some(v) = split(x) {
             return (v, rays);
