@@ -114,14 +114,22 @@ async fn a_job_runs_and_yields_its_result_and_images() {
             .to_str()
             .unwrap()
             .contains("immutable"));
-        let etag = h[header::ETAG].clone();
-        let again = Request::get(format!("/api/v1/jobs/{id}/{path}"))
-            .header(header::IF_NONE_MATCH, etag)
-            .body(Body::empty())
-            .unwrap();
-        let (st, _, b) = call(&router, again).await;
-        assert_eq!(st, StatusCode::NOT_MODIFIED);
-        assert!(b.is_empty());
+        let etag = h[header::ETAG].to_str().unwrap().to_string();
+        // the tag itself, one of a list, and its weak form all match; another tag does not
+        for (sent, want) in [
+            (etag.clone(), StatusCode::NOT_MODIFIED),
+            (format!("\"0\", {etag}"), StatusCode::NOT_MODIFIED),
+            (format!("W/{etag}"), StatusCode::NOT_MODIFIED),
+            ("\"0\"".to_string(), StatusCode::OK),
+        ] {
+            let again = Request::get(format!("/api/v1/jobs/{id}/{path}"))
+                .header(header::IF_NONE_MATCH, &sent)
+                .body(Body::empty())
+                .unwrap();
+            let (st, _, b) = call(&router, again).await;
+            assert_eq!(st, want, "{path}, If-None-Match: {sent}");
+            assert_eq!(b.is_empty(), want == StatusCode::NOT_MODIFIED);
+        }
     }
     let img = image::load_from_memory(
         &call(&router, get(&format!("/api/v1/jobs/{id}/image.png")))
@@ -565,6 +573,29 @@ async fn operations_routes() {
         );
     }
     assert!(api["paths"]["/api/v1/jobs"]["post"]["responses"]["422"].is_object());
+    let render = &api["paths"]["/api/v1/render"]["post"]["responses"];
+    for status in ["200", "409", "422", "503", "504"] {
+        assert!(render[status].is_object(), "render lacks {status}");
+    }
+    let png = &api["paths"]["/api/v1/jobs/{id}/{artifact}"]["get"]["responses"];
+    assert!(png["304"].is_object());
+    let schema = &png["200"]["content"]["image/png"]["schema"];
+    let schema = match schema["$ref"].as_str() {
+        Some(r) => &api["components"]["schemas"][r.rsplit('/').next().unwrap()],
+        None => schema,
+    };
+    assert_eq!(
+        (schema["type"].as_str(), schema["format"].as_str()),
+        (Some("string"), Some("binary")),
+        "{schema}"
+    );
+    // only the scene is required, and no part may be null
+    let document = &api["components"]["schemas"]["JobDocument"];
+    assert_eq!(document["required"], json!(["scene"]));
+    for part in ["scene", "solver", "output"] {
+        let t = &document["properties"][part]["type"];
+        assert_eq!(t, &json!("object"), "{part}: {t}");
+    }
 
     let (st, h, b) = call(&router, get("/")).await;
     assert_eq!(st, StatusCode::OK);
@@ -600,14 +631,25 @@ async fn operations_routes() {
         call(&router, get("/static/style.css")).await.0,
         StatusCode::OK
     );
+    // the page offers every example scene the project ships, as shipped
     let names = json(&call(&router, get("/scenes/index.json")).await.2);
-    assert!(names
-        .as_array()
-        .unwrap()
-        .contains(&json!("flatland-parallel")));
-    let (st, _, b) = call(&router, get("/scenes/flatland-parallel.json")).await;
-    assert_eq!(st, StatusCode::OK);
-    assert_eq!(json(&b), scene("flatland-parallel"));
+    let mut shipped: Vec<String> =
+        std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes"))
+            .unwrap()
+            .filter_map(|e| {
+                let name = e.unwrap().file_name().into_string().unwrap();
+                name.strip_suffix(".json").map(str::to_string)
+            })
+            .collect();
+    shipped.sort();
+    let mut offered: Vec<String> = serde_json::from_value(names).unwrap();
+    offered.sort();
+    assert_eq!(offered, shipped);
+    for name in &shipped {
+        let (st, _, b) = call(&router, get(&format!("/scenes/{name}.json"))).await;
+        assert_eq!(st, StatusCode::OK, "{name}");
+        assert_eq!(json(&b), scene(name));
+    }
 }
 
 #[tokio::test(flavor = "multi_thread")]

@@ -8,15 +8,23 @@ use serde::Serialize;
 use utoipa::{OpenApi, ToSchema};
 
 /// A job document (`spec/scene.md`): `scene` is required, `solver` and `output` optional.
+/// Neither of the optional parts may be `null`.
 #[derive(Serialize, ToSchema)]
 pub struct JobDocument {
     #[schema(value_type = Object)]
     pub scene: serde_json::Value,
-    #[schema(value_type = Option<Object>)]
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Object)]
     pub solver: Option<serde_json::Value>,
-    #[schema(value_type = Option<Object>)]
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Object)]
     pub output: Option<serde_json::Value>,
 }
+
+/// A PNG image (binary).
+#[derive(ToSchema)]
+#[schema(value_type = String, format = Binary)]
+pub struct Png(pub Vec<u8>);
 
 /// The result of a job (`spec/scene.md`, "What a finished job yields").
 #[derive(Serialize, ToSchema)]
@@ -57,6 +65,7 @@ pub struct ResultDocument {
     components(schemas(
         JobDocument,
         ResultDocument,
+        Png,
         JobStatus,
         JobState,
         ProgressInfo,

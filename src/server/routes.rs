@@ -293,7 +293,7 @@ pub async fn job_result(
 /// `image.png`, `sparsity.png` or `coefficients.png` of a job.
 #[utoipa::path(get, path = "/api/v1/jobs/{id}/{artifact}", tag = "results",
     params(("id" = String, Path), ("artifact" = String, Path, description = "image.png, sparsity.png or coefficients.png")),
-    responses((status = 200, content_type = "image/png", body = Vec<u8>),
+    responses((status = 200, content_type = "image/png", body = super::openapi::Png),
         (status = 304, description = "If-None-Match matched the ETag"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json")))]
@@ -318,7 +318,8 @@ pub async fn job_artifact(
 /// The image of one surface.
 #[utoipa::path(get, path = "/api/v1/jobs/{id}/surfaces/{file}", tag = "results",
     params(("id" = String, Path), ("file" = String, Path, description = "<surface name>.png")),
-    responses((status = 200, content_type = "image/png", body = Vec<u8>),
+    responses((status = 200, content_type = "image/png", body = super::openapi::Png),
+        (status = 304, description = "If-None-Match matched the ETag"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json")))]
 pub async fn job_surface(
@@ -355,7 +356,12 @@ fn png(bytes: Vec<u8>, headers: &HeaderMap) -> Response {
     let matches = headers
         .get(header::IF_NONE_MATCH)
         .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*"));
+        .is_some_and(|v| {
+            // weak comparison (RFC 9110 13.1.2): W/"x" matches "x"
+            v.split(',')
+                .map(|t| t.trim())
+                .any(|t| t == "*" || t.strip_prefix("W/").unwrap_or(t) == etag)
+        });
     if matches {
         return (
             StatusCode::NOT_MODIFIED,
@@ -379,13 +385,15 @@ fn png(bytes: Vec<u8>, headers: &HeaderMap) -> Response {
 #[utoipa::path(post, path = "/api/v1/render", tag = "jobs",
     request_body(content = super::openapi::JobDocument, content_type = "application/json"),
     responses(
-        (status = 200, description = "the image, or the result with Accept: application/json", content_type = "image/png", body = Vec<u8>),
+        (status = 200, description = "the image, or the result with Accept: application/json", content_type = "image/png", body = super::openapi::Png),
         (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 413, body = Problem, content_type = "application/problem+json"),
         (status = 415, body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "invalid document, or a solve this build does not support", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "the job was cancelled while the client waited", body = Problem, content_type = "application/problem+json"),
         (status = 500, description = "the solve failed", body = Problem, content_type = "application/problem+json"),
-        (status = 503, description = "would wait longer than sync_timeout, or the queue is full (Retry-After)", body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "would wait longer than sync_timeout (Location: the job, which goes on), or the queue is full (Retry-After)", body = Problem, content_type = "application/problem+json"),
+        (status = 504, description = "the solve ran past job_timeout", body = Problem, content_type = "application/problem+json"),
     ))]
 pub async fn render_now(
     State(state): State<AppState>,
@@ -539,7 +547,7 @@ async fn static_file(Path(file): Path<String>) -> Result<Response, Problem> {
 }
 
 /// The example scenes shipped in `scenes/`, embedded.
-pub const SCENES: [(&str, &str); 5] = [
+pub const SCENES: [(&str, &str); 7] = [
     (
         "flatland-parallel",
         include_str!("../../scenes/flatland-parallel.json"),
@@ -547,6 +555,14 @@ pub const SCENES: [(&str, &str); 5] = [
     (
         "flatland-perpendicular",
         include_str!("../../scenes/flatland-perpendicular.json"),
+    ),
+    (
+        "flatland-occluded",
+        include_str!("../../scenes/flatland-occluded.json"),
+    ),
+    (
+        "flatland-room",
+        include_str!("../../scenes/flatland-room.json"),
     ),
     (
         "fredholm-degenerate",
