@@ -231,6 +231,32 @@ async fn bad_bodies_get_their_own_status_as_problem_documents() {
         ] {
             assert!(paths.contains(&expected), "{expected} not in {paths:?}");
         }
+        // 422: a name given twice in one object, which a parsed value would hide (the last
+        // one wins there), beside the other errors
+        let good = scene("flatland-parallel").to_string();
+        let twice = good.replacen(
+            "\"solver\":{",
+            "\"solver\":{\"tolerance\":1e-6,\"tolerance\":1e-9,",
+            1,
+        );
+        assert_ne!(twice, good, "the document has a solver object");
+        for (text, more) in [
+            (twice.clone(), None),
+            (
+                twice.replacen("\"order\":1", "\"order\":-1", 1),
+                Some("/solver/order"),
+            ),
+        ] {
+            let (st, h, b) = call(&router, post(uri, text)).await;
+            let p = problem(st, &h, &b, StatusCode::UNPROCESSABLE_ENTITY);
+            let errors = p["errors"].as_array().unwrap();
+            assert!(
+                errors.iter().any(|e| e["path"] == "/solver/tolerance"
+                    && e["message"].as_str().unwrap().contains("twice")),
+                "{errors:?}"
+            );
+            assert_eq!(errors.len(), 1 + more.iter().count(), "{errors:?}");
+        }
     }
 }
 

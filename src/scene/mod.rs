@@ -4,10 +4,12 @@
 
 mod expr;
 mod parse;
+mod repeated;
 mod walk;
 
 pub use expr::{Expr, ExprError};
-pub use parse::{parse_document, parse_value};
+pub use parse::{parse_document, parse_text, parse_value};
+pub use repeated::repeated_keys;
 
 use serde::Serialize;
 

@@ -12,7 +12,21 @@ pub fn parse_document(text: &str, limits: &Limits) -> Result<Job, DocumentErrors
             message: format!("not valid JSON: {e}"),
         }])
     })?;
-    parse_value(&value, limits)
+    parse_text(text, &value, limits)
+}
+
+/// [`parse_value`] of `value`, parsed from `text`, with the names that `text` repeats within
+/// one object ([`super::repeated_keys`]) among the errors: the value keeps only the last.
+pub fn parse_text(text: &str, value: &Value, limits: &Limits) -> Result<Job, DocumentErrors> {
+    let repeated = super::repeated_keys(text);
+    match parse_value(value, limits) {
+        Ok(job) if repeated.is_empty() => Ok(job),
+        Ok(_) => Err(DocumentErrors(repeated)),
+        Err(DocumentErrors(mut errors)) => {
+            errors.extend(repeated);
+            Err(DocumentErrors(errors))
+        }
+    }
 }
 
 /// Validates a JSON value as a job document, applying every default of the spec.

@@ -108,7 +108,7 @@ pub async fn read_document(
         )
         .with_type("not-json", "Not JSON")
     })?;
-    let job = crate::scene::parse_value(&value, &state.config.limits())
+    let job = crate::scene::parse_text(text, &value, &state.config.limits())
         .map_err(|e| Problem::invalid(&e))?;
     Ok((value, job))
 }
