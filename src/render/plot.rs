@@ -165,21 +165,26 @@ fn line_chart(
         });
     let pad = (hi - lo) * 0.05;
     let small = area.dim_in_pixel().1 < 200;
+    let y_range = (lo - if lo < 0.0 { pad } else { 0.0 })..(hi + pad);
+    let legend = emptiest_corner(&series, domain, [y_range.start, y_range.end]);
     let mut chart = ChartBuilder::on(area)
         .caption(caption, (SANS, if small { 12 } else { 15 }))
         .margin(8)
-        .x_label_area_size(if small { 22 } else { 40 })
+        .x_label_area_size(if small { 32 } else { 40 })
         .y_label_area_size(62)
-        .build_cartesian_2d(
-            domain[0]..domain[1],
-            (lo - if lo < 0.0 { pad } else { 0.0 })..(hi + pad),
-        )?;
+        .build_cartesian_2d(domain[0]..domain[1], y_range)?;
     let y_format = |v: &f64| format!("{v:.3}");
     let mut mesh = chart.configure_mesh();
     mesh.label_style((SANS, 11))
         .y_desc(ydesc)
         .y_label_formatter(&y_format);
-    if !small {
+    // a small panel gets a short axis name and fewer ticks, so that its labels do not run
+    // into each other
+    if small {
+        mesh.x_desc(xdesc.split(' ').next().unwrap_or(xdesc))
+            .x_labels(5)
+            .y_labels(4);
+    } else {
         mesh.x_desc(xdesc);
     }
     mesh.draw()?;
@@ -196,13 +201,49 @@ fn line_chart(
     if !small {
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(legend)
             .label_font((SANS, 11))
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .draw()?;
     }
     Ok(())
+}
+
+/// The corner of the plot (a third of its width, a quarter of its height) that the fewest
+/// points of `series` fall in, for the legend.
+fn emptiest_corner(series: &[Series], x: [f64; 2], y: [f64; 2]) -> SeriesLabelPosition {
+    let (w, h) = (x[1] - x[0], y[1] - y[0]);
+    let corners = [
+        (SeriesLabelPosition::UpperRight, true, true),
+        (SeriesLabelPosition::UpperLeft, false, true),
+        (SeriesLabelPosition::LowerRight, true, false),
+        (SeriesLabelPosition::LowerLeft, false, false),
+    ];
+    let inside = |&(px, py): &(f64, f64), right: bool, upper: bool| {
+        let in_x = if right {
+            px > x[1] - w / 3.0
+        } else {
+            px < x[0] + w / 3.0
+        };
+        let in_y = if upper {
+            py > y[1] - h / 4.0
+        } else {
+            py < y[0] + h / 4.0
+        };
+        in_x && in_y
+    };
+    corners
+        .into_iter()
+        .min_by_key(|&(_, right, upper)| {
+            series
+                .iter()
+                .flat_map(|s| &s.points)
+                .filter(|p| inside(p, right, upper))
+                .count()
+        })
+        .map(|(c, _, _)| c)
+        .expect("four corners")
 }
 
 /// A perceptually ordered colour map (viridis, interpolated between eight anchors), t ∈ [0,1].
