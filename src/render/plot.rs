@@ -453,3 +453,42 @@ pub fn message(w: u32, h: u32, text: &str) -> RgbImage {
     })
     .0
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(points: Vec<(f64, f64)>) -> Series {
+        Series {
+            label: String::new(),
+            color: BLACK,
+            points,
+        }
+    }
+
+    #[test]
+    fn the_legend_goes_where_the_curves_are_not() {
+        let rising = line((0..=100).map(|i| (i as f64 / 100.0, i as f64)).collect());
+        let falling = line(
+            (0..=100)
+                .map(|i| (i as f64 / 100.0, 100.0 - i as f64))
+                .collect(),
+        );
+        let at = |s: &Series| emptiest_corner(std::slice::from_ref(s), [0.0, 1.0], [0.0, 100.0]);
+        assert!(matches!(at(&rising), SeriesLabelPosition::UpperLeft));
+        assert!(matches!(at(&falling), SeriesLabelPosition::UpperRight));
+        // high everywhere but at the left: the lower right is free of both
+        let both = [
+            line((0..=100).map(|i| (i as f64 / 100.0, 90.0)).collect()),
+            line(
+                (0..=100)
+                    .map(|i| (i as f64 / 100.0, if i < 30 { 5.0 } else { 95.0 }))
+                    .collect(),
+            ),
+        ];
+        assert!(matches!(
+            emptiest_corner(&both, [0.0, 1.0], [0.0, 100.0]),
+            SeriesLabelPosition::LowerRight
+        ));
+    }
+}
