@@ -198,7 +198,16 @@ impl<'g> Hierarchy<'g> {
         let (er, es) = (&self.elements[r as usize], &self.elements[s as usize]);
         let (kernel, detail) = self.error(r, s, x);
         let can = er.level < self.max_level || es.level < self.max_level;
-        can && kernel + detail > self.threshold
+        // the oracle's share for a receiver along a contact line ([`refine::CONTACT_SHARE`])
+        let contact = er.level < self.max_level
+            && self.at_contact(r)
+            && !self.geo.unoccluded(er.piece, es.piece);
+        let limit = if contact {
+            refine::CONTACT_SHARE * self.threshold
+        } else {
+            self.threshold
+        };
+        can && kernel + detail > limit
     }
 
     /// Sets every element's `detail` from the leaves' B; returns Σ over the leaves below
