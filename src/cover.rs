@@ -16,13 +16,15 @@
 //! one of five rays from it over its hemisphere first meets the back of a surface. That is
 //! the inside of a closed solid: a ray from the floor in front of a box meets the ceiling
 //! or the front of the box. Surfaces are probed only where another surface stands on them,
-//! away from their edges (the walls of a room meet only at edges). Each cell of the
-//! hierarchy's finest level is probed at its corners and centre; the cells where the
-//! outline passes, and their neighbours, are resolved on a [`SUB`] × [`SUB`] grid.
+//! away from their edges (the walls of a room meet only at edges), or where a surface lies
+//! flat against them a little in front, facing the same way (a light hung just below a
+//! ceiling: the ceiling behind it sees only its back). Each cell of the hierarchy's finest
+//! level is probed at its corners and centre; the cells where the outline passes, and their
+//! neighbours, are resolved on a [`SUB`] × [`SUB`] grid.
 
 use crate::basis::legendre::interval_gram;
 use crate::bvh::Bvh;
-use crate::space::{add, cross, dot, normalize, scale, Parallelogram};
+use crate::space::{add, cross, dot, normalize, scale, Parallelogram, V3};
 use crate::visibility3d::STEP;
 use rayon::prelude::*;
 
@@ -92,12 +94,13 @@ impl Partial {
 }
 
 impl Mask {
-    /// The masks of every surface of the scene that something stands on (`None` for the
-    /// rest, and where nothing turned out covered), at `res` finest cells per side.
+    /// The masks of every surface of the scene that something stands on or lies flat against
+    /// (`None` for the rest, and where nothing turned out covered), at `res` finest cells per
+    /// side.
     pub fn of_scene(quads: &[Parallelogram], bvh: &Bvh, res: usize) -> Vec<Option<Mask>> {
         (0..quads.len())
             .map(|i| {
-                (!contacts(quads, i).is_empty())
+                (!contacts(quads, i).is_empty() || lidded(quads, i))
                     .then(|| Mask::probe(quads, bvh, i, res))
                     .filter(|m| m.cells.iter().any(|c| *c != Cell::Open))
             })
@@ -364,6 +367,34 @@ pub fn contacts(quads: &[Parallelogram], i: usize) -> Vec<[[f64; 2]; 2]> {
     lines
 }
 
+/// Whether another surface lies flat against surface `i`, facing the same way, closer to it
+/// than [`LID_GAP`] of its own smaller side, over part of it: a ceiling light hung a little
+/// below the ceiling. The ceiling behind it sees only the light's back through a sliver at
+/// grazing angles, so it is dark up to the light's outline, where one polynomial over both
+/// sides would smear it (on the Cornell box without its blocks, the light 1 unit below the
+/// ceiling: the four cells above it 40 % bright, those around it 8 % dark).
+fn lidded(quads: &[Parallelogram], i: usize) -> bool {
+    let q = &quads[i];
+    quads.iter().enumerate().any(|(j, o)| {
+        let side = |e: V3| dot(e, e).sqrt();
+        let gap = q.side(o.p0);
+        let reach = LID_GAP * side(o.e1).min(side(o.e3));
+        let corners = o.piece([0.0, 1.0], [0.0, 1.0]);
+        j != i
+            && dot(q.n, o.n) > 1.0 - 1e-9
+            && gap > 0.0
+            && gap < reach
+            && corners.iter().any(|&c| {
+                let (s, t) = q.params(c);
+                (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t)
+            })
+    })
+}
+
+/// How close a surface must lie in front of another, as a share of its smaller side, to be
+/// taken for a lid ([`lidded`]): the probes of the mask then decide, point by point.
+pub const LID_GAP: f64 = 0.02;
+
 /// Whether the segment `line` of (s, t) meets the closed piece `[s0, s1] × [t0, t1]`
 /// (Liang–Barsky clipping).
 pub fn meets(line: &[[f64; 2]; 2], s: [f64; 2], t: [f64; 2]) -> bool {
@@ -488,6 +519,44 @@ mod tests {
         assert!(meets(&[[0.5, 0.0], [0.5, 1.0]], [0.0, 0.5], [0.2, 0.3]));
         assert!(meets(&[[0.5, 0.0], [0.5, 1.0]], [0.5, 1.0], [0.2, 0.3]));
         assert!(!meets(&[[0.5, 0.0], [0.5, 1.0]], [0.6, 1.0], [0.2, 0.3]));
+    }
+
+    #[test]
+    fn a_panel_hung_just_below_a_ceiling_covers_it() {
+        // a ceiling [0, 8]² at y = 4 facing down, and a panel [3, 5]² facing down at `gap`
+        // below it
+        let ceiling = |gap: f64| {
+            let p = |c: [[f64; 3]; 4]| Parallelogram::new(&c);
+            let y = 4.0 - gap;
+            vec![
+                p([
+                    [0.0, 4.0, 0.0],
+                    [8.0, 4.0, 0.0],
+                    [8.0, 4.0, 8.0],
+                    [0.0, 4.0, 8.0],
+                ]),
+                p([[3.0, y, 3.0], [5.0, y, 3.0], [5.0, y, 5.0], [3.0, y, 5.0]]),
+            ]
+        };
+        let quads = ceiling(0.01);
+        assert!(quads[0].n[1] < 0.0 && quads[1].n[1] < 0.0, "both face down");
+        assert!(lidded(&quads, 0) && !lidded(&quads, 1));
+        let bvh = Bvh::occluders(&quads);
+        let m = Mask::of_scene(&quads, &bvh, 8).remove(0).expect("covered");
+        // the ceiling's s runs along x and t along z: the panel is [0.375, 0.625]²
+        assert!(m.covered(0.5, 0.5) && m.covered(0.4, 0.6));
+        assert!(!m.covered(0.3, 0.5) && !m.covered(0.5, 0.7) && !m.covered(0.1, 0.1));
+        // a panel further than 2 % of its side, or facing the other way, is no lid
+        assert!(!lidded(&ceiling(0.05), 0));
+        let mut flipped = ceiling(0.01);
+        flipped[1] = Parallelogram::new(&[
+            [3.0, 3.99, 3.0],
+            [3.0, 3.99, 5.0],
+            [5.0, 3.99, 5.0],
+            [5.0, 3.99, 3.0],
+        ]);
+        assert!(flipped[1].n[1] > 0.0);
+        assert!(!lidded(&flipped, 0));
     }
 
     #[test]

@@ -219,10 +219,7 @@ fn hierarchical_links_grow_linearly_with_the_leaves() {
     // the tolerance ([`wavrad::hierarchy::three_d::refine::CONTACT_SHARE`]), which reaches
     // more sources as ε shrinks
     eprintln!("links per leaf at resolution 128: {per_leaf:?}");
-    assert!(
-        per_leaf[2] / per_leaf[0] < 16f64.powf(0.7),
-        "{per_leaf:?}"
-    );
+    assert!(per_leaf[2] / per_leaf[0] < 16f64.powf(0.7), "{per_leaf:?}");
 }
 
 #[test]
