@@ -391,16 +391,22 @@ fn lidded(quads: &[Parallelogram], i: usize) -> bool {
     })
 }
 
+/// How far outside a piece, in its surface's (s, t), a contact line still touches it.
+pub const MEET_SLACK: f64 = 1e-9;
+
 /// How close a surface must lie in front of another, as a share of its smaller side, to be
 /// taken for a lid ([`lidded`]): the probes of the mask then decide, point by point.
 pub const LID_GAP: f64 = 0.02;
 
 /// Whether the segment `line` of (s, t) meets the closed piece `[s0, s1] × [t0, t1]`
-/// (Liang–Barsky clipping).
+/// (Liang–Barsky clipping), widened by [`MEET_SLACK`]: a line along the border of two pieces,
+/// whose ends are rounded, touches both.
 pub fn meets(line: &[[f64; 2]; 2], s: [f64; 2], t: [f64; 2]) -> bool {
     let [a, b] = *line;
     let d = [b[0] - a[0], b[1] - a[1]];
     let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+    let s = [s[0] - MEET_SLACK, s[1] + MEET_SLACK];
+    let t = [t[0] - MEET_SLACK, t[1] + MEET_SLACK];
     for (axis, range) in [(0, s), (1, t)] {
         for (p, q) in [
             (-d[axis], a[axis] - range[0]),
@@ -500,6 +506,17 @@ mod tests {
         let quads = floor_with_box([2.0, 3.0], [5.0, 4.5]);
         let lines = contacts(&quads, 0);
         assert_eq!(lines.len(), 4, "{lines:?}");
+        // four different edges
+        for (i, a) in lines.iter().enumerate() {
+            for b in &lines[i + 1..] {
+                let same =
+                    |p: [f64; 2], q: [f64; 2]| (p[0] - q[0]).abs() + (p[1] - q[1]).abs() < 1e-12;
+                assert!(
+                    !(same(a[0], b[0]) && same(a[1], b[1]) || same(a[0], b[1]) && same(a[1], b[0])),
+                    "{a:?} twice"
+                );
+            }
+        }
         let (s0, s1, t0, t1) = (3.0 / 8.0, 4.5 / 8.0, 2.0 / 8.0, 5.0 / 8.0);
         for [a, b] in &lines {
             for p in [a, b] {
@@ -519,6 +536,9 @@ mod tests {
         assert!(meets(&[[0.5, 0.0], [0.5, 1.0]], [0.0, 0.5], [0.2, 0.3]));
         assert!(meets(&[[0.5, 0.0], [0.5, 1.0]], [0.5, 1.0], [0.2, 0.3]));
         assert!(!meets(&[[0.5, 0.0], [0.5, 1.0]], [0.6, 1.0], [0.2, 0.3]));
+        // a line along a border, its ends rounded a little to one side, touches both pieces
+        let border = [[0.5 - 1e-15, 0.0], [0.5 - 1e-15, 1.0]];
+        assert!(meets(&border, [0.5, 1.0], [0.2, 0.3]) && meets(&border, [0.0, 0.5], [0.2, 0.3]));
     }
 
     #[test]

@@ -252,7 +252,7 @@ async fn bad_bodies_get_their_own_status_as_problem_documents() {
             let errors = p["errors"].as_array().unwrap();
             assert!(
                 errors.iter().any(|e| e["path"] == "/solver/tolerance"
-                    && e["message"].as_str().unwrap().contains("twice")),
+                    && e["message"].as_str().unwrap().contains("more than once")),
                 "{errors:?}"
             );
             assert_eq!(errors.len(), 1 + more.iter().count(), "{errors:?}");

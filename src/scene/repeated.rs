@@ -7,11 +7,15 @@
 use super::walk::{child, index};
 use super::FieldError;
 use serde::de::{DeserializeSeed, Deserializer, MapAccess, SeqAccess, Visitor};
-use std::collections::HashSet;
+use std::collections::HashMap;
 use std::fmt;
 
-/// Every repeated name in the JSON `text`, at its JSON pointer, in document order. A text
-/// that is not JSON has none (its parse reports it).
+/// The most repeated names reported for one document.
+pub const MAX_REPORTED: usize = 100;
+
+/// Every repeated name in the JSON `text` (each once per object, at most [`MAX_REPORTED`]),
+/// at its JSON pointer, in document order. A text that is not JSON has none (its parse
+/// reports it).
 pub fn repeated_keys(text: &str) -> Vec<FieldError> {
     let mut found = Vec::new();
     let mut de = serde_json::Deserializer::from_str(text);
@@ -80,14 +84,17 @@ impl<'de> Visitor<'de> for Walk<'_> {
     }
 
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
-        let mut seen = HashSet::new();
+        // each name once, whatever the number of its repeats
+        let mut seen = HashMap::new();
         while let Some(key) = map.next_key::<String>()? {
             let path = child(&self.path, &key);
-            if !seen.insert(key.clone()) {
+            let times = seen.entry(key.clone()).or_insert(0u32);
+            *times += 1;
+            if *times == 2 && self.found.len() < MAX_REPORTED {
                 self.found.push(FieldError {
                     path: path.clone(),
                     message: format!(
-                        "\"{key}\" is given twice in this object; give each name once"
+                        "\"{key}\" is given more than once in this object; give each name once"
                     ),
                 });
             }
@@ -118,7 +125,18 @@ mod tests {
                 "/solver/order"
             ]
         );
-        assert!(found[2].message.contains("\"order\" is given twice"));
+        assert!(found[2]
+            .message
+            .contains("\"order\" is given more than once"));
+        // a name given many times is reported once; many names, at most MAX_REPORTED
+        let many = format!("{{{}}}", vec!["\"a\": 0"; 1000].join(","));
+        assert_eq!(repeated_keys(&many).len(), 1);
+        let names: Vec<String> = (0..1000)
+            .map(|i| format!("\"k{i}\": 0, \"k{i}\": 1"))
+            .collect();
+        let found = repeated_keys(&format!("{{{}}}", names.join(",")));
+        assert_eq!(found.len(), MAX_REPORTED);
+        assert_eq!(found[0].path, "/k0");
     }
 
     #[test]

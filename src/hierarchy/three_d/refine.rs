@@ -14,8 +14,8 @@
 //! square of B on S minus its polynomial there (the wavelet detail below S). A partly visible
 //! pair loses the smoothness factor (a shadow edge is not a polynomial), and so does a receiver
 //! along a line where another surface stands on its surface, when anything may come between it
-//! and S: it is split before the source, against [`CONTACT_SHARE`] of the tolerance. w_R = 1
-//! when S emits;
+//! and S; such a pair is judged against [`CONTACT_SHARE`] of the tolerance, before any ray,
+//! and split on the receiver's side unless the receiver is the smaller. w_R = 1 when S emits;
 //! for inter-reflected light it is the number of non-emitting surfaces facing R's surface: the
 //! tolerance is shared among them, because R gathers from all of them and their errors add up
 //! with one sign (a coarse link averages a source's bright spot over a kernel that peaks at
@@ -41,7 +41,7 @@ use rayon::prelude::*;
 /// foot on the floor) the standing surface hides up to half of the room, which the rays from
 /// inside a coarse receiver do not see: on the Cornell box's floor in front of the short
 /// block, 1 / 5 / 10 units from its foot, the whole tolerance left B +40 / +24 / +16 % bright;
-/// half of it, +14 / +3 / −0.4 %, for 6 % more links (a quarter: +4 / −4 / −5 %, 18 %).
+/// half of it, +14 / +3 / −0.4 %, for 65 k → 70 k links (a quarter: +4 / −4 / −5 %, 77 k).
 pub const CONTACT_SHARE: f64 = 0.5;
 
 /// The geometric part of the oracle's estimate for one pair.
@@ -242,9 +242,10 @@ impl Hierarchy<'_> {
         );
         // a receiver along a line where another surface stands on it gets no smoothness
         // credit when something may come between it and the source (that surface, most
-        // often), and is split first, against a share of the tolerance: the points next to
-        // the line see less of the source than rays from inside the receiver can tell. No
-        // rays are needed to decide that
+        // often), and only a share of the tolerance: the points next to the line see less of
+        // the source than rays from inside the receiver can tell. The receiver is split
+        // unless it is the smaller of the two ([`Hierarchy::refine_all`]); no rays are needed
+        // to decide that
         let contact = self.at_contact(r) && !self.geo.unoccluded(pr, ps);
         if contact && self.splittable(r) {
             let (kernel, detail) = self.error(r, s, Factors { f, smooth: 1.0 });
