@@ -475,16 +475,17 @@ fn cornell_box_at_higher_orders() {
 #[test]
 fn a_box_face_lit_only_by_the_floor_in_front_of_it() {
     // the floor, the light and the short block's front face alone: the face is behind the
-    // light and sees only a strip of the floor next to their common line. Measured +10.2 %
-    // (+11.8 % with a step per quarter, +20.0 % with one visible fraction per link): the
-    // floor cells along the line are lit behind it and in its shadow in front, one
-    // polynomial across the step
+    // light and sees only a strip of the floor next to their common line. Measured +8.8 %
+    // (+10.2 % before the floor along the line was judged against half the tolerance, +11.8 %
+    // with a step per quarter, +20.0 % with one visible fraction per link): the floor cells
+    // along the line are lit behind it and in its shadow in front, one polynomial across the
+    // step
     let base = scene_file("cornell-box");
     let s = base["scene"]["surfaces"].as_array().expect("surfaces");
     let mut doc = base.clone();
     doc["scene"]["surfaces"] = json!([s[0], s[5], s[12]]);
     let c = compare(&doc, &reference(&doc, 32), "floor, light, short-front");
-    assert_within(&c, 0.01, 0.13);
+    assert_within(&c, 0.01, 0.11);
 }
 
 #[test]
