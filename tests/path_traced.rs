@@ -318,6 +318,35 @@ fn cornell_reference() -> &'static [Vec<(V3, V3)>] {
     REFERENCE.get_or_init(|| reference(&scene_file("cornell-box"), 256))
 }
 
+/// The Cornell box's floor as the solver has it (green, B at its document's settings), and a
+/// point of that floor as the reference has it from `m` gathers.
+struct Floor {
+    field: wavrad::field::Field,
+    tracer: Tracer,
+}
+
+impl Floor {
+    fn of_the_cornell_box() -> Floor {
+        let doc = scene_file("cornell-box");
+        let j = parse_value(&doc, &Limits::default()).expect("valid document");
+        let out = job::run(&j, &Silent).expect("solves");
+        Floor {
+            field: out.fields[0].clone(),
+            tracer: Tracer::new(&doc),
+        }
+    }
+
+    /// (solver, reference) at x; the floor's s runs along z and t along x, both over 555.
+    fn at(&self, x: V3, m: usize, rng: &mut SmallRng) -> (f64, f64) {
+        let got = self.field.eval(x[2] / 555.0, x[0] / 555.0)[1];
+        let want = (0..m)
+            .map(|_| self.tracer.gathered(x, 0, rng)[1] * 0.73)
+            .sum::<f64>()
+            / m as f64;
+        (got, want)
+    }
+}
+
 fn compare(doc: &Value, reference: &[Vec<(V3, V3)>], label: &str) -> Comparison {
     let tracer = Tracer::new(doc);
     let j = parse_value(doc, &Limits::default()).expect("valid document");
@@ -501,11 +530,7 @@ fn the_floor_at_the_foot_of_a_lit_face() {
     // fraction is a step over the receiver's quarters. Before the face's own light was
     // counted whole on the exposed part (`the_floor_lit_by_the_face_of_a_box_standing_on_it`
     // in tests/three_d.rs), it was a third short there, which hid that (within 4.2 %).
-    let doc = scene_file("cornell-box");
-    let j = parse_value(&doc, &Limits::default()).expect("valid document");
-    let out = job::run(&j, &Silent).expect("solves");
-    let floor = &out.fields[0];
-    let tracer = Tracer::new(&doc);
+    let floor = Floor::of_the_cornell_box();
     // tall-front runs from (265, 0, 295) to (424.3778, 0, 252.2949); its normal points −z
     let n = [-0.258819, 0.0, -0.965926];
     let mut rng = SmallRng::seed_from_u64(7);
@@ -513,13 +538,7 @@ fn the_floor_at_the_foot_of_a_lit_face() {
         let foot = [265.0 + along * 159.3778, 0.0, 295.0 - along * 42.7051];
         for d in [0.5, 2.0, 5.0, 8.0, 12.0] {
             let x = [foot[0] + n[0] * d, 0.0, foot[2] + n[2] * d];
-            // the floor's s runs along z and t along x, both over 555
-            let got = floor.eval(x[2] / 555.0, x[0] / 555.0)[1];
-            let m = 40_000;
-            let want = (0..m)
-                .map(|_| tracer.gathered(x, 0, &mut rng)[1] * 0.73)
-                .sum::<f64>()
-                / m as f64;
+            let (got, want) = floor.at(x, 40_000, &mut rng);
             assert!(
                 (got / want - 1.0).abs() < 0.17,
                 "{along} of the foot, {d} in front: {got} against {want}"
@@ -536,11 +555,7 @@ fn the_floor_at_the_foot_of_an_unlit_face() {
     // against half the tolerance ([`wavrad::hierarchy::three_d::refine::CONTACT_SHARE`]).
     // Measured 1 / 2 / 5 / 10 / 17 units in front: +13.6 / +12.2 / +3.4 / −0.4 / −1.2 %; with
     // the whole tolerance +40 / +37 / +24 / +16 / +11 %
-    let doc = scene_file("cornell-box");
-    let j = parse_value(&doc, &Limits::default()).expect("valid document");
-    let out = job::run(&j, &Silent).expect("solves");
-    let floor = &out.fields[0];
-    let tracer = Tracer::new(&doc);
+    let floor = Floor::of_the_cornell_box();
     // short-front runs from (130, 0, 65) to (286.9243, 0, 115.9878); its normal points −z
     let n = [0.309017, 0.0, -0.951057];
     let foot = [130.0 + 0.5 * 156.9243, 0.0, 65.0 + 0.5 * 50.9878];
@@ -553,12 +568,7 @@ fn the_floor_at_the_foot_of_an_unlit_face() {
         (17.0, 0.05),
     ] {
         let x = [foot[0] + n[0] * d, 0.0, foot[2] + n[2] * d];
-        let got = floor.eval(x[2] / 555.0, x[0] / 555.0)[1];
-        let m = 100_000;
-        let want = (0..m)
-            .map(|_| tracer.gathered(x, 0, &mut rng)[1] * 0.73)
-            .sum::<f64>()
-            / m as f64;
+        let (got, want) = floor.at(x, 100_000, &mut rng);
         assert!(
             (got / want - 1.0).abs() < bound,
             "{d} in front: {got} against {want}"
