@@ -373,7 +373,8 @@ pub fn visible_fraction_over(
     let disc = area(&a, qa).min(area(&b, qb)) / std::f64::consts::PI;
     let mut rng = SplitMix(seed);
     let m = n * n;
-    let mut perm: Vec<usize> = (0..m).collect();
+    // on the stack for the grids the solvers use (up to 16 × 16): one call per judged pair
+    let mut perm: smallvec::SmallVec<[u32; 256]> = (0..m as u32).collect();
     for i in (1..m).rev() {
         let j = (rng.next_u64() % (i as u64 + 1)) as usize;
         perm.swap(i, j);
@@ -381,6 +382,7 @@ pub fn visible_fraction_over(
     let (mut seen, mut total) = ([0.0; CELLS], [0.0; CELLS]);
     let cell = 1.0 / n as f64;
     for (i, &j) in perm.iter().enumerate() {
+        let j = j as usize;
         let (ia, ja) = (i % n, i / n);
         let (ib, jb) = (j % n, j / n);
         let (ua, va) = (

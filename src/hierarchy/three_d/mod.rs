@@ -53,6 +53,9 @@ pub struct Hierarchy<'g> {
     pub k: usize,
     pub max_level: u32,
     pub threshold: f64,
+    /// The typical reflected radiosity (area-weighted mean over the non-emitting surfaces,
+    /// mean of the channels) of the last solve; 0 before the first.
+    pub typical: f64,
     /// Largest channel of ρ per surface.
     pub rho: Vec<f64>,
     /// Per receiver surface: how many non-emitting surfaces face it (at least 1), the weight
@@ -129,6 +132,7 @@ impl<'g> Hierarchy<'g> {
             k,
             max_level: resolution.trailing_zeros(),
             threshold: epsilon * emax,
+            typical: 0.0,
             indirect: (0..quads.len())
                 .map(|i| {
                     (0..quads.len())
@@ -199,13 +203,11 @@ impl<'g> Hierarchy<'g> {
         let (kernel, detail) = self.error(r, s, x);
         let can = er.level < self.max_level || es.level < self.max_level;
         // the oracle's share for a receiver along a contact line ([`refine::CONTACT_SHARE`])
-        let contact = er.level < self.max_level
-            && self.at_contact(r)
-            && !self.geo.unoccluded(er.piece, es.piece);
+        let contact = er.level < self.max_level && x.contact;
         let limit = if contact {
-            refine::CONTACT_SHARE * self.threshold
+            refine::CONTACT_SHARE * self.tolerance(r)
         } else {
-            self.threshold
+            self.tolerance(r)
         };
         can && kernel + detail > limit
     }
@@ -248,6 +250,7 @@ impl<'g> Hierarchy<'g> {
 
     /// Re-evaluates every link with the current B; returns how many were refined.
     pub fn rerefine(&mut self, progress: &dyn Progress) -> Result<usize, Cancelled> {
+        self.typical = self.typical_radiosity();
         for root in 0..self.quads.len() {
             self.measure_detail(root as u32);
         }

@@ -20,7 +20,8 @@
 //! tolerance is shared among them, because R gathers from all of them and their errors add up
 //! with one sign (a coarse link averages a source's bright spot over a kernel that peaks at
 //! it, so it carries too little: with w_R = 1 every surface of the Cornell box came out 1–3 %
-//! low). When err is above ε times the brightest emission, an element is split (down to the
+//! low). When err is above ε times the brightest emission (less on a dim receiver surface,
+//! [`DIM_KNEE`]), an element is split (down to the
 //! finest level allowed: the source when D_S is most of the error, else the larger) and its
 //! children are linked instead; otherwise the pair becomes a link whose k² × k² block is
 //! integrated by [`crate::transfer`] and scaled by the visible fraction.
@@ -33,7 +34,7 @@ use crate::progress::{Cancelled, Progress};
 use crate::projection::three_d::VISIBILITY_GRID;
 use crate::space::quad_quad;
 use crate::transfer::{self, Integrand};
-use crate::visibility3d::{pair_seed, Piece, Seen, Steps, STEP};
+use crate::visibility3d::{pair_seed, visible_fraction_over, Piece, Seen, Steps, STEP};
 use rayon::prelude::*;
 
 /// The share of the tolerance for a receiver along a line where another surface stands on its
@@ -44,6 +45,14 @@ use rayon::prelude::*;
 /// half of it, +14 / +3 / −0.4 %, for 65 k → 70 k links (a quarter: +4 / −4 / −5 %, 77 k).
 pub const CONTACT_SHARE: f64 = 0.5;
 
+/// A receiver surface whose mean B is below this share of the typical B (the area-weighted
+/// mean over the non-emitting surfaces) is dim: the oracle's tolerance for it shrinks with
+/// the cube of the ratio ([`Hierarchy::tolerance`]), down to [`DIM_SHARE`].
+pub const DIM_KNEE: f64 = 0.5;
+
+/// The least share of the tolerance for a dim receiver surface.
+pub const DIM_SHARE: f64 = 0.125;
+
 /// The geometric part of the oracle's estimate for one pair.
 #[derive(Debug, Clone, Copy)]
 pub struct Factors {
@@ -51,6 +60,9 @@ pub struct Factors {
     pub f: f64,
     /// (d / (d + dist))^(m+1), or 1 when the pair is partly visible.
     pub smooth: f64,
+    /// Whether the receiver touches a contact line and something may come between it and
+    /// the source ([`CONTACT_SHARE`]).
+    pub contact: bool,
 }
 
 /// What the oracle makes of a pair.
@@ -61,6 +73,9 @@ enum Verdict {
     Split { source: bool },
     /// Accept as a link with these factors and visible fractions.
     Link(Factors, Seen),
+    /// Drop, without rays: the receiver is covered (it receives nothing), or the source is
+    /// covered and does not emit (it sends nothing).
+    Inert,
     /// Accept, but no ray got through: no link, unless the source brightens enough to
     /// refine the pair (the factors are kept for that).
     Hidden(Factors),
@@ -199,6 +214,48 @@ impl Hierarchy<'_> {
             .any(|line| crate::cover::meets(line, p.s, p.t))
     }
 
+    /// The oracle's tolerance for receiver `r`: ε times the brightest emission, shrunk on a
+    /// dim surface. The estimate is absolute, so a surface at a tenth of the typical B takes
+    /// links ten times too coarse for the same relative error; on the Cornell box the blocks'
+    /// unlit sides (B at 0.1–0.3 of typical) came out +2.0 to +2.9 % against a path tracer,
+    /// the walls within 0.2 %. Tightening in proportion to B (a relative tolerance) brought
+    /// the sides within 1.4 % for 25 % more links, most of them on the coloured walls (B at
+    /// 0.5 of typical), which gained nothing they needed; the cube below [`DIM_KNEE`] leaves
+    /// those walls alone and gives the sides ⅛ of the tolerance: every surface within 1 %,
+    /// for 5 % more links. Before the first solve B is only E, and the whole tolerance holds.
+    pub(super) fn tolerance(&self, r: u32) -> f64 {
+        if self.typical <= 0.0 {
+            return self.threshold;
+        }
+        let surface = self.elements[r as usize].piece.surface;
+        let dim = self.mean_radiosity(surface) / (DIM_KNEE * self.typical);
+        self.threshold * dim.powi(3).clamp(DIM_SHARE, 1.0)
+    }
+
+    /// The mean over the channels of surface `i`'s mean B.
+    fn mean_radiosity(&self, i: usize) -> f64 {
+        let root = &self.elements[i];
+        root.b[0].iter().sum::<f64>() / 3.0 / root.area.sqrt()
+    }
+
+    /// The area-weighted mean over the non-emitting surfaces of [`Self::mean_radiosity`]
+    /// (0 when there are none, or before the first solve).
+    pub(super) fn typical_radiosity(&self) -> f64 {
+        let (mut sum, mut area) = (0.0, 0.0);
+        for (i, q) in self.quads.iter().enumerate() {
+            if q.material.emission.iter().all(|&e| e == 0.0) {
+                let a = self.elements[i].area;
+                sum += self.mean_radiosity(i) * a;
+                area += a;
+            }
+        }
+        if area > 0.0 {
+            sum / area
+        } else {
+            0.0
+        }
+    }
+
     fn splittable(&self, e: u32) -> bool {
         self.elements[e as usize].level < self.max_level
     }
@@ -225,7 +282,11 @@ impl Hierarchy<'_> {
     /// The oracle's verdict on one pair, with the element tree as it is: read-only, so that
     /// a whole frontier of pairs is judged in parallel (the rays are most of the work).
     fn judge(&self, r: u32, s: u32, (f, smooth): (f64, f64)) -> (Verdict, u64) {
-        let thr = self.threshold;
+        let covered = |e: u32| self.elements[e as usize].exposure == Exposure::Covered;
+        if covered(r) || (covered(s) && self.elements[s as usize].peak == 0.0) {
+            return (Verdict::Inert, 0);
+        }
+        let thr = self.tolerance(r);
         let can = self.splittable(r) || self.splittable(s);
         let split = |x: Factors| {
             let (kernel, detail) = self.error(r, s, x);
@@ -233,7 +294,12 @@ impl Hierarchy<'_> {
                 source: detail > kernel,
             })
         };
-        if let Some(v) = split(Factors { f, smooth }) {
+        let unsure = Factors {
+            f,
+            smooth,
+            contact: false,
+        };
+        if let Some(v) = split(unsure) {
             return (v, 0);
         }
         let (pr, ps) = (
@@ -246,9 +312,18 @@ impl Hierarchy<'_> {
         // the source than rays from inside the receiver can tell. The receiver is split
         // unless it is the smaller of the two ([`Hierarchy::refine_all`]); no rays are needed
         // to decide that
-        let contact = self.at_contact(r) && !self.geo.unoccluded(pr, ps);
+        let clear = self.geo.unoccluded(pr, ps);
+        let contact = !clear && self.at_contact(r);
         if contact && self.splittable(r) {
-            let (kernel, detail) = self.error(r, s, Factors { f, smooth: 1.0 });
+            let (kernel, detail) = self.error(
+                r,
+                s,
+                Factors {
+                    f,
+                    smooth: 1.0,
+                    contact,
+                },
+            );
             if kernel + detail > CONTACT_SHARE * thr {
                 return (Verdict::Split { source: false }, 0);
             }
@@ -263,17 +338,18 @@ impl Hierarchy<'_> {
             .min(self.elements[s as usize].level);
         let grid = VISIBILITY_GRID << 2u32.saturating_sub(top);
         let mask = self.masks[pr.surface].as_ref();
-        let mut v = self
-            .geo
-            .visibility_over(pr, mask, ps, seed, grid, &mut rays);
+        let bvh = &self.geo.bvh;
+        let mut v = if clear {
+            Seen::CLEAR
+        } else {
+            visible_fraction_over(bvh, pr, mask, ps, grid, seed, &mut rays)
+        };
         // a partly visible pair gets four rays per step cell of the receiver, so that its
         // visible fraction is a step over those cells rather than over the quarters (a
         // constant, at order 0, gains nothing from it)
         let fine = 2 * STEP;
         if self.k > 1 && grid < fine && v.whole > 0.0 && v.whole < 1.0 {
-            v = self
-                .geo
-                .visibility_over(pr, mask, ps, seed ^ 1, fine, &mut rays);
+            v = visible_fraction_over(bvh, pr, mask, ps, fine, seed ^ 1, &mut rays);
         }
         // partly visible, or hidden as far as the few sampled rays can tell (a big pair's
         // light may pass through a gap none of them found): no smoothness credit
@@ -284,6 +360,7 @@ impl Hierarchy<'_> {
             } else {
                 smooth
             },
+            contact,
         };
         if let Some(v) = split(x) {
             return (v, rays);
@@ -350,6 +427,7 @@ impl Hierarchy<'_> {
                     }
                     Verdict::Link(x, v) => out.push((r, s, x, v)),
                     Verdict::Hidden(x) => self.hidden.push((r, s, x)),
+                    Verdict::Inert => {}
                 }
             }
             pairs = next;
