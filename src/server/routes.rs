@@ -438,7 +438,7 @@ pub async fn render_now(
     let wants_json = headers
         .get(header::ACCEPT)
         .and_then(|v| v.to_str().ok())
-        .is_some_and(|a| a.contains("application/json"));
+        .is_some_and(prefers_json);
     let location = (header::CONTENT_LOCATION, status.links.this.clone());
     if wants_json {
         let bytes = stored(&state, &entry.id, "result.json").await?;
@@ -459,6 +459,41 @@ pub async fn render_now(
         );
         Ok(res)
     }
+}
+
+/// Whether an `Accept` header asks for the result JSON rather than the PNG (RFC 9110 §12.5.1):
+/// each type gets the quality of the most specific range that matches it (`*/*`, `image/*`,
+/// `image/png`; q = 1 unless given), and JSON wins only with the higher one, so that the PNG
+/// stays the default, as `spec/api.md` has it. Written out because only these two types are
+/// offered; a negotiation crate would bring a media-type parser for that.
+fn prefers_json(accept: &str) -> bool {
+    let quality = |kind: &str, sub: &str| {
+        let mut best: Option<(u8, f64)> = None;
+        for range in accept.split(',') {
+            let mut parts = range.split(';').map(str::trim);
+            let Some((k, s)) = parts.next().and_then(|m| m.split_once('/')) else {
+                continue;
+            };
+            let (k, s) = (k.to_ascii_lowercase(), s.to_ascii_lowercase());
+            let specificity = match (k.as_str(), s.as_str()) {
+                ("*", "*") => 0,
+                (k2, "*") if k2 == kind => 1,
+                (k2, s2) if k2 == kind && s2 == sub => 2,
+                _ => continue,
+            };
+            let q = parts
+                .filter_map(|p| p.split_once('='))
+                .find(|(name, _)| name.trim().eq_ignore_ascii_case("q"))
+                .and_then(|(_, v)| v.trim().parse::<f64>().ok())
+                .unwrap_or(1.0)
+                .clamp(0.0, 1.0);
+            if best.is_none_or(|(b, _)| specificity > b) {
+                best = Some((specificity, q));
+            }
+        }
+        best.map_or(0.0, |(_, q)| q)
+    };
+    quality("application", "json") > quality("image", "png")
 }
 
 /// The job's final status, or `None` past `limit`.
@@ -583,4 +618,31 @@ async fn scene_file(Path(file): Path<String>) -> Result<Response, Problem> {
         .find(|(n, _)| *n == name)
         .ok_or_else(|| Problem::not_found(&format!("example scene {name}")))?;
     Ok(([(header::CONTENT_TYPE, "application/json")], *text).into_response())
+}
+
+#[cfg(test)]
+mod negotiation {
+    use super::prefers_json;
+
+    #[test]
+    fn the_png_is_the_default_and_json_wins_only_with_a_higher_quality() {
+        for (accept, json) in [
+            ("application/json", true),
+            ("Application/JSON", true),
+            ("image/png", false),
+            ("*/*", false),
+            ("text/html", false),
+            ("application/json, image/png", false),
+            ("image/png;q=0.5, application/json", true),
+            ("application/json;q=0.9, image/png", false),
+            ("application/json;q=0, */*", false),
+            ("image/*;q=0.1, application/*", true),
+            ("image/png;q=0, image/*", false),
+            ("application/json; charset=utf-8; q=0.8, */*;q=0.5", true),
+            ("*/*;q=0.2, application/json;q=0.1", false),
+            ("garbage, application/json;q=oops", true),
+        ] {
+            assert_eq!(prefers_json(accept), json, "{accept}");
+        }
+    }
 }
