@@ -439,10 +439,15 @@ fn cornell_box_approaches_path_tracing_as_epsilon_shrinks() {
     //
     // | ε       | walls, tops | block sides                  | cell means, net of noise |
     // |---------|-------------|------------------------------|--------------------------|
-    // | 1e-3    | 0.24 %      | 0.97 % (short left, green)   | 0.54 %                   |
-    // | 2.5e-4  | 0.16 %      | 0.94 % (short front, red)    | 0.23 %                   |
-    // | 6.25e-5 | 0.29 %      | 0.76 % (short front, red)    | 0.10 %                   |
+    // | 1e-3    | 0.23 %      | 1.17 % (short left, green)   | 0.25 %                   |
+    // | 2.5e-4  | 0.17 %      | 0.99 % (short left, green)   | 0.10 %                   |
+    // | 6.25e-5 | 0.29 %      | 0.72 % (short front, red)    | 0.07 %                   |
     //
+    // Below 0.1 % the gap is within the reference's own noise and can only be bounded.
+    // Splitting coarse receivers before their sources ([`receiver_first`]) took the cell
+    // means from 0.54 / 0.23 / 0.10 % to these, and the worst side's own cells (the tall
+    // block's front) from 3.1 % to 1.1 %; the surface means of the sides moved by up to
+    // half a point either way (the short block's left +0.97 % → +1.17 % green).
     // The sides that the light does not reach are dark (0.03–0.2 against 47 for the light,
     // which ε is relative to): with the whole tolerance on them their links stayed coarse
     // and they came out up to +2.90 % bright at the document's ε (+2.24 % at 2.5e-4). A
@@ -459,13 +464,15 @@ fn cornell_box_approaches_path_tracing_as_epsilon_shrinks() {
     // the surfaces a receiver gathers from, and the block sides were off by up to 144 %
     // before the visible fraction was weighted by the kernel and the oracle looked at the
     // receiver's edges.
+    //
+    // [`receiver_first`]: wavrad::hierarchy::three_d::refine::receiver_first
     let reference = cornell_reference();
     let mut doc = scene_file("cornell-box");
     let mut nets = Vec::new();
     for (epsilon, walls, faces, net) in [
-        (1e-3, 0.005, 0.012, 0.0065),
-        (2.5e-4, 0.004, 0.012, 0.003),
-        (6.25e-5, 0.004, 0.01, 0.0015),
+        (1e-3, 0.004, 0.013, 0.0035),
+        (2.5e-4, 0.004, 0.011, 0.0016),
+        (6.25e-5, 0.004, 0.008, 0.0012),
     ] {
         doc["solver"]["epsilon"] = json!(epsilon);
         let c = compare(&doc, reference, &format!("Cornell box, ε = {epsilon}"));
@@ -473,17 +480,19 @@ fn cornell_box_approaches_path_tracing_as_epsilon_shrinks() {
         assert!(c.net() < net, "ε = {epsilon}: {} net of the noise", c.net());
         nets.push(c.net());
     }
-    assert!(nets.windows(2).all(|w| w[1] < 0.6 * w[0]), "{nets:?}");
+    assert!(nets[1] < 0.6 * nets[0] && nets[2] < nets[1], "{nets:?}");
 }
 
 #[test]
 fn cornell_box_at_higher_orders() {
-    // the document's ε at orders 2 and 3, measured: walls and tops within 0.32 %, block
-    // sides within 1.02 % and 1.12 % (the tall block's front, low; the short block's unlit
-    // front is +0.09 % and +0.54 %), cell means 0.31 % and 0.29 % net of the reference's
-    // noise (0.54 % at order 1). A quadratic follows the dip of the floor
-    // toward the foot of a face and the penumbra in front of it better than a line on the
-    // same cells, which is what the unlit faces see
+    // the document's ε at orders 2 and 3, measured: walls and tops within 0.27 % and
+    // 0.32 %, block sides within 1.04 % (the tall block's left, low) and 1.09 % (its front,
+    // low; the short block's unlit front is +0.70 % and +0.61 %), cell means 0.25 % and
+    // 0.27 % net of the reference's noise, as at order 1 (0.25 %): at this ε the three
+    // orders meet the same limit of the oracle. Before receivers coarser than a 4 × 4 (2 × 2
+    // at order 3) split were split first, order 1 was at 0.54 %, and a quadratic, which
+    // follows the dip of the floor toward the foot of a face better than a line on the same
+    // cells, gained from 0.54 % to 0.31 %
     let reference = cornell_reference();
     let mut doc = scene_file("cornell-box");
     for order in [2, 3] {
@@ -506,8 +515,8 @@ fn cornell_box_at_higher_orders() {
 #[test]
 fn a_box_face_lit_only_by_the_floor_in_front_of_it() {
     // the floor, the light and the short block's front face alone: the face is behind the
-    // light and sees only a strip of the floor next to their common line. Measured +6.8 %
-    // (+8.8 % before a dim receiver got a share of the tolerance, +10.2 % before the floor along the line was judged against half the tolerance, +11.8 %
+    // light and sees only a strip of the floor next to their common line. Measured +6.5 %
+    // (+6.8 % before coarse receivers were split before their sources, +8.8 % before a dim receiver got a share of the tolerance, +10.2 % before the floor along the line was judged against half the tolerance, +11.8 %
     // with a step per quarter, +20.0 % with one visible fraction per link): the floor cells
     // along the line are lit behind it and in its shadow in front, one polynomial across the
     // step
@@ -523,8 +532,10 @@ fn a_box_face_lit_only_by_the_floor_in_front_of_it() {
 fn the_floor_at_the_foot_of_a_lit_face() {
     // the floor in front of the tall block's lit front face, pointwise, along the face's
     // outward normal from two points of its foot: the finest floor cells there lie half
-    // under the block. Measured within 15.5 % (green; +6.5 % and +15.5 % half a unit from
-    // the foot, within 5.2 % from 8 units on); fitting one polynomial over the covered and
+    // under the block. Measured within 4.7 % (green; +3.8 % and +4.7 % half a unit from the
+    // foot, −3.6 % and −1.5 % at 12 units); within 15.5 % (+6.5 % and +15.5 % half a unit
+    // from the foot) before coarse receivers were split before their sources
+    // ([`wavrad::hierarchy::three_d::refine::receiver_first`]); fitting one polynomial over the covered and
     // the exposed part of each such cell, as before the covered part was left out of the
     // fit, gave −50 % at the foot. What is left is the direct light: with every other
     // surface black the floor there is +11–13 % half a unit from the foot, because the
@@ -542,7 +553,7 @@ fn the_floor_at_the_foot_of_a_lit_face() {
             let x = [foot[0] + n[0] * d, 0.0, foot[2] + n[2] * d];
             let (got, want) = floor.at(x, 40_000, &mut rng);
             assert!(
-                (got / want - 1.0).abs() < 0.17,
+                (got / want - 1.0).abs() < 0.06,
                 "{along} of the foot, {d} in front: {got} against {want}"
             );
         }
@@ -555,19 +566,20 @@ fn the_floor_at_the_foot_of_an_unlit_face() {
     // block shades that floor and hides half of the room from the points next to its foot.
     // Rays from inside a coarse floor element see none of that, so such elements are split
     // against half the tolerance ([`wavrad::hierarchy::three_d::refine::CONTACT_SHARE`]).
-    // Measured 1 / 2 / 5 / 10 / 17 units in front: +13.6 / +12.2 / +3.4 / −0.4 / −1.2 %; with
-    // the whole tolerance +40 / +37 / +24 / +16 / +11 %
+    // Measured 1 / 2 / 5 / 10 / 17 units in front: +5.3 / +7.7 / +2.6 / −3.9 / −0.4 %; before
+    // coarse receivers were split before their sources +13.6 / +12.2 / +3.4 / −0.4 / −1.2 %,
+    // and with the whole tolerance +40 / +37 / +24 / +16 / +11 %
     let floor = Floor::of_the_cornell_box();
     // short-front runs from (130, 0, 65) to (286.9243, 0, 115.9878); its normal points −z
     let n = [0.309017, 0.0, -0.951057];
     let foot = [130.0 + 0.5 * 156.9243, 0.0, 65.0 + 0.5 * 50.9878];
     let mut rng = SmallRng::seed_from_u64(11);
     for (d, bound) in [
-        (1.0, 0.17),
-        (2.0, 0.16),
-        (5.0, 0.07),
-        (10.0, 0.05),
-        (17.0, 0.05),
+        (1.0, 0.08),
+        (2.0, 0.10),
+        (5.0, 0.05),
+        (10.0, 0.06),
+        (17.0, 0.03),
     ] {
         let x = [foot[0] + n[0] * d, 0.0, foot[2] + n[2] * d];
         let (got, want) = floor.at(x, 100_000, &mut rng);
@@ -583,17 +595,18 @@ fn the_ceiling_behind_a_hanging_light_is_dark() {
     // the Cornell box without its blocks: the light hangs 1 unit below the ceiling, which
     // behind it sees only the light's back, so the ceiling is dark up to the light's outline.
     // Fitted on its exposed part ([`wavrad::cover`]), the four cells above the light are
-    // measured +8.7 / +6.5 / +3.3 / +3.3 % of the path tracer (of about 0.06, against 0.2
-    // around them), every surface mean within 0.31 %, the cell means 0.84 % net of the noise;
-    // with one polynomial across the outline the four were +40 %, their neighbours 8 % dark,
-    // every surface 0.3–0.7 % low and the cell means 1.22 %
+    // measured +4.8 / +6.7 / +2.1 / −2.6 % of the path tracer (of about 0.06, against 0.2
+    // around them), every surface mean within 0.16 %, the cell means 0.18 % net of the noise
+    // (+8.7 / +6.5 / +3.3 / +3.3 %, 0.31 % and 0.84 % before coarse receivers were split
+    // before their sources); with one polynomial across the outline the four were +40 %,
+    // their neighbours 8 % dark, every surface 0.3–0.7 % low and the cell means 1.22 %
     let base = scene_file("cornell-box");
     let mut doc = base.clone();
     doc["scene"]["surfaces"] = json!(base["scene"]["surfaces"].as_array().expect("surfaces")[..6]);
     let reference = reference(&doc, 128);
     let c = compare(&doc, &reference, "Cornell box without its blocks");
-    assert_within(&c, 0.005, 0.005);
-    assert!(c.net() < 0.01, "{} net of the noise", c.net());
+    assert_within(&c, 0.003, 0.003);
+    assert!(c.net() < 0.004, "{} net of the noise", c.net());
     let j = parse_value(&doc, &Limits::default()).expect("valid document");
     let out = job::run(&j, &Silent).expect("solves");
     // the light spans x ∈ [213, 343], z ∈ [227, 332]; the ceiling's s runs along x, t along z,
@@ -603,8 +616,48 @@ fn the_ceiling_behind_a_hanging_light_is_dark() {
         let cell = ct * 8 + cs;
         let (got, want) = (ceiling.cells[cell][1], reference[1][cell].0[1]);
         assert!(
-            (got / want - 1.0).abs() < 0.12,
+            (got / want - 1.0).abs() < 0.08,
             "cell ({cs}, {ct}): {got} against {want}"
         );
+    }
+}
+
+#[test]
+fn a_room_lit_through_its_ceiling() {
+    // a 4 × 3 × 4 room with a flush light in the middle of its ceiling (an emission region),
+    // one coloured wall and one tinted one, nothing inside: the most ordinary radiosity
+    // scene. Every surface's own cells are smooth, and the elements that the oracle leaves
+    // coarse are the walls far from the light. Measured, net of the reference's 0.27 %
+    // noise: 0.05 % at order 1 and 1.74 % at order 0, every surface mean within 0.05 % and
+    // 1.8 % (all low at order 0: a constant over a coarse source averages its bright spot);
+    // before coarse receivers were split before their sources
+    // ([`wavrad::hierarchy::three_d::refine::receiver_first`]), 1.49 % and 6.98 %, with
+    // the walls' corner cells 5 % and 36 % bright
+    let wall = |name: &str, corners: Value, rho: Value| json!({ "name": name, "corners": corners, "reflectance": rho });
+    let doc = json!({
+        "scene": { "kind": "3d", "surfaces": [
+            wall("floor", json!([[0, 0, 0], [0, 0, 4], [4, 0, 4], [4, 0, 0]]), json!(0.6)),
+            { "name": "ceiling", "corners": [[0, 3, 0], [4, 3, 0], [4, 3, 4], [0, 3, 4]],
+              "reflectance": 0.8, "emission": 20.0,
+              "emission_region": { "s": [0.4, 0.6], "t": [0.4, 0.6] } },
+            wall("back", json!([[0, 0, 4], [0, 3, 4], [4, 3, 4], [4, 0, 4]]), json!([0.7, 0.6, 0.3])),
+            wall("front", json!([[0, 0, 0], [4, 0, 0], [4, 3, 0], [0, 3, 0]]), json!(0.5)),
+            wall("left", json!([[4, 0, 0], [4, 0, 4], [4, 3, 4], [4, 3, 0]]), json!([0.2, 0.3, 0.7])),
+            wall("right", json!([[0, 0, 0], [0, 3, 0], [0, 3, 4], [0, 0, 4]]), json!(0.7)),
+        ]},
+        "solver": { "method": "hierarchical", "order": 1, "resolution": 32, "epsilon": 1e-3 },
+        "output": { "grid": 8 }
+    });
+    let reference = reference(&doc, 256);
+    for (order, means, net) in [(1, 0.002, 0.005), (0, 0.02, 0.025)] {
+        let mut doc = doc.clone();
+        doc["solver"]["order"] = json!(order);
+        let c = compare(
+            &doc,
+            &reference,
+            &format!("room lit through its ceiling, order {order}"),
+        );
+        assert_within(&c, means, means);
+        assert!(c.net() < net, "order {order}: {} net of the noise", c.net());
     }
 }

@@ -189,8 +189,9 @@ fn plates_keep_half_and_a_quarter_of_their_coefficients() {
 #[test]
 fn hierarchical_links_grow_linearly_with_the_leaves() {
     // the Cornell box at order 0, for several ε: doubling the resolution limit doubles the
-    // leaves (the refinement reaches the limit along every shared edge) and the links with
-    // them, where the dense matrix of the projection method would quadruple. The links per
+    // leaves (the refinement reaches the limit along every shared edge) and adds links in
+    // proportion to the leaves it adds, where the dense matrix of the projection method
+    // would quadruple. The links per
     // leaf depend on ε only: the oracle accepts a link when F̂ × smoothness falls below
     // ε / (ρB), so each leaf links to the pieces in a ball whose radius grows like
     // ε^(−1/(m+3)), i.e. ε^(−2/(m+3)) links.
@@ -206,15 +207,20 @@ fn hierarchical_links_grow_linearly_with_the_leaves() {
         }
         eprintln!("ε = {eps}: (leaves, links) at resolution 32, 64, 128: {rows:?}");
         for w in rows.windows(2) {
-            let (leaves, links) = (w[1].0 / w[0].0, w[1].1 / w[0].1);
-            assert!(leaves > 1.6, "{rows:?}");
-            // linear: the links grow like the leaves, to 15 %
-            assert!((links / leaves - 1.0).abs() < 0.15, "{rows:?}");
+            assert!(w[1].0 / w[0].0 > 1.6, "{rows:?}");
         }
+        // linear: each step adds links in proportion to the leaves it adds, to 15 % (the
+        // links between elements coarser than the receivers' first level,
+        // [`wavrad::hierarchy::three_d::refine::receiver_first`], are a fixed part that the
+        // resolution does not touch); a dense matrix would add four times as many per leaf
+        // at each step
+        let slope = |a: (f64, f64), b: (f64, f64)| (b.1 - a.1) / (b.0 - a.0);
+        let (first, second) = (slope(rows[0], rows[1]), slope(rows[1], rows[2]));
+        assert!((second / first - 1.0).abs() < 0.15, "{rows:?}");
         per_leaf.push(rows[2].1 / rows[2].0);
     }
-    // and as ε shrinks 16-fold the links per leaf grow by far less than 16: measured 1.68,
-    // 6.17 and 11.46 at resolution 128, 6.8-fold, a little above the 16^(2/3) ≈ 6.3 of the
+    // and as ε shrinks 16-fold the links per leaf grow by far less than 16: measured 1.90,
+    // 6.51 and 12.57 at resolution 128, 6.6-fold, a little above the 16^(2/3) ≈ 6.3 of the
     // estimate above, because the receivers along the blocks' feet are judged against half
     // the tolerance ([`wavrad::hierarchy::three_d::refine::CONTACT_SHARE`]), which reaches
     // more sources as ε shrinks (5.1-fold before)

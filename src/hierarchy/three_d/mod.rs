@@ -52,6 +52,8 @@ pub struct Hierarchy<'g> {
     pub filters: &'static Filters,
     pub k: usize,
     pub max_level: u32,
+    /// Receivers above this level are split before their sources ([`refine::receiver_first`]).
+    pub receiver_first: u32,
     pub threshold: f64,
     /// The typical reflected radiosity (area-weighted mean over the non-emitting surfaces,
     /// mean of the channels) of the last solve; 0 before the first.
@@ -131,6 +133,7 @@ impl<'g> Hierarchy<'g> {
             filters: Filters::of_order(order),
             k,
             max_level: resolution.trailing_zeros(),
+            receiver_first: refine::receiver_first(order, resolution.trailing_zeros()),
             threshold: epsilon * emax,
             typical: 0.0,
             indirect: (0..quads.len())
