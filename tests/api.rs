@@ -257,7 +257,54 @@ async fn bad_bodies_get_their_own_status_as_problem_documents() {
             );
             assert_eq!(errors.len(), 1 + more.iter().count(), "{errors:?}");
         }
+        // 422: a number too large for f64 is valid JSON and not finite, so its path is at
+        // fault; so is a body nested deeper than any document (at the root)
+        let text = scene("flatland-parallel").to_string().replacen(
+            "\"reflectance\":0.8",
+            "\"reflectance\":1e999",
+            1,
+        );
+        assert!(text.contains("1e999"));
+        let (st, h, b) = call(&router, post(uri, text)).await;
+        let p = problem(st, &h, &b, StatusCode::UNPROCESSABLE_ENTITY);
+        assert_eq!(
+            p["errors"][0]["path"], "/scene/surfaces/1/reflectance",
+            "{p}"
+        );
+        let deep = format!("{}{}", "[".repeat(200), "]".repeat(200));
+        let (st, h, b) = call(&router, post(uri, deep)).await;
+        let p = problem(st, &h, &b, StatusCode::UNPROCESSABLE_ENTITY);
+        assert_eq!(p["errors"][0]["path"], "", "{p}");
     }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn the_job_id_hashes_numbers_as_written() {
+    // the canonical JSON sorts keys and keeps numbers as they are written: 0.8 and 8e-1 are
+    // different documents, a different order of keys is the same one
+    let (_dir, _state, router) = setup(|_| {});
+    let text = scene("flatland-parallel").to_string();
+    assert!(text.contains("\"reflectance\":0.8"));
+    let mut ids = Vec::new();
+    for t in [
+        text.clone(),
+        text.replacen("\"reflectance\":0.8", "\"reflectance\":8e-1", 1),
+        text.replacen("\"reflectance\":0.8", "\"reflectance\":0.80", 1),
+    ] {
+        let (st, _, b) = call(&router, post("/api/v1/jobs", t)).await;
+        assert!(st == StatusCode::ACCEPTED || st == StatusCode::OK, "{st}");
+        ids.push(json(&b)["id"].as_str().unwrap().to_string());
+    }
+    assert!(
+        ids[0] != ids[1] && ids[1] != ids[2] && ids[0] != ids[2],
+        "{ids:?}"
+    );
+    let mut reordered: Value = serde_json::from_str(&text).unwrap();
+    let solver = reordered["solver"].take();
+    reordered.as_object_mut().unwrap().remove("solver");
+    reordered["solver"] = solver;
+    let (_, _, b) = call(&router, post("/api/v1/jobs", reordered.to_string())).await;
+    assert_eq!(json(&b)["id"], ids[0]);
 }
 
 #[tokio::test(flavor = "multi_thread")]

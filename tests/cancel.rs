@@ -119,3 +119,43 @@ fn cancel_stops_the_hierarchical_method_within_a_second() {
         "stopped {waited:?} after the cancel"
     );
 }
+
+/// Cancels `after` into the job (as a DELETE or a job timeout would), wherever it is.
+struct CancelAt {
+    start: Instant,
+    after: Duration,
+}
+
+impl Progress for CancelAt {
+    fn report(&self, _: Phase, _: f64) {}
+    fn cancelled(&self) -> bool {
+        self.start.elapsed() >= self.after
+    }
+}
+
+#[test]
+fn cancel_stops_a_fine_3d_refinement_within_a_second() {
+    // the Cornell box at ε = 6.25e-5 refines for several seconds, a level at a time, each
+    // level's pairs judged in parallel with their rays; cancels at several points of it
+    let mut doc: serde_json::Value =
+        serde_json::from_str(include_str!("../scenes/cornell-box.json")).unwrap();
+    doc["solver"]["epsilon"] = serde_json::json!(6.25e-5);
+    let job = parse_value(&doc, &Limits::default()).unwrap();
+    // a pool of its own, as the server gives each job
+    let pool = rayon::ThreadPoolBuilder::new().build().unwrap();
+    for after in [0.3, 1.0, 2.0, 3.0] {
+        let p = CancelAt {
+            start: Instant::now(),
+            after: Duration::from_secs_f64(after),
+        };
+        assert_eq!(
+            pool.install(|| job::run(&job, &p)).unwrap_err(),
+            JobError::Cancelled
+        );
+        let waited = p.start.elapsed().as_secs_f64() - after;
+        assert!(
+            waited < 1.0,
+            "cancelled at {after} s, stopped {waited:.2} s later"
+        );
+    }
+}

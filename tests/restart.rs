@@ -21,6 +21,10 @@ impl Drop for Server {
 }
 
 fn start(dir: &Path) -> Server {
+    start_with(dir, &[])
+}
+
+fn start_with(dir: &Path, extra: &[&str]) -> Server {
     let mut child = Command::new(env!("CARGO_BIN_EXE_wavrad"))
         .args([
             "serve",
@@ -31,6 +35,7 @@ fn start(dir: &Path) -> Server {
             "--shutdown-grace",
             "0s",
         ])
+        .args(extra)
         .arg("--data-dir")
         .arg(dir)
         .stdout(Stdio::piped())
@@ -208,4 +213,49 @@ async fn jobs_survive_a_killed_server() {
 #[tokio::test(flavor = "multi_thread")]
 async fn jobs_survive_a_sigterm() {
     survive("-TERM").await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_render_answered_503_survives_a_killed_server() {
+    // POST /api/v1/render writes its job's record lazily (its client waits for the answer);
+    // once it answers 503 and points to the job, the job is the client's to follow, and a
+    // crash right after must not lose it
+    let dir = tempfile::tempdir().unwrap();
+    let http = reqwest::Client::new();
+    let mut server = start_with(dir.path(), &["--sync-timeout", "200ms"]);
+    let res = http
+        .post(format!("{}/api/v1/render", server.base))
+        .header("content-type", "application/json")
+        .body(doc(9, 256).to_string())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), 503);
+    let location = res.headers()["location"].to_str().unwrap().to_string();
+    let id = location.rsplit('/').next().unwrap().to_string();
+    let killed = Command::new("kill")
+        .args(["-KILL", &server.child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    server.child.wait().unwrap();
+    drop(server);
+
+    let server = start(dir.path());
+    let known = http
+        .get(format!("{}/api/v1/jobs/{id}", server.base))
+        .send()
+        .await
+        .unwrap()
+        .status();
+    assert_eq!(known, 200, "the job answered 503 is known after the crash");
+    let s = wait_for(
+        &http,
+        &server.base,
+        &id,
+        &["succeeded", "failed"],
+        Duration::from_secs(300),
+    )
+    .await;
+    assert_eq!(s, "succeeded");
 }

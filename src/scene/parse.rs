@@ -50,19 +50,88 @@ fn document(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Job> {
         .and_then(Value::as_str);
     let solver = match root.get("solver") {
         Some(s) => solver(w, s, limits, kind_name),
-        None => Some(Solver::default()),
+        None => Some(Parsed::valid(Solver::default())),
     };
     let output = match root.get("output") {
         Some(o) => output(w, o, limits),
-        None => Some(Output::default()),
+        None => Some(Parsed::valid(Output::default())),
     };
-    let job = Job {
-        scene: scene?,
-        solver: solver?,
-        output: output?,
-    };
-    cross_checks(w, &job, limits);
-    Some(job)
+    // the checks across parts need only the scene's kind and size, so they run beside any
+    // error inside a surface, on the fields of solver and output that parsed
+    if let (Some(shape), Some(s), Some(o)) = (Shape::of(root, limits), &solver, &output) {
+        cross_checks(w, &shape, &s.value, &o.value, limits);
+    }
+    let scene = scene?;
+    let mut output = output?.ok()?;
+    // scene.md: a fredholm equation's `exact` solution, when given, is what the error
+    // metrics are measured against, unless the document asks for a finer solve instead
+    if matches!(&scene.kind, SceneKind::Fredholm(f) if f.exact.is_some())
+        && root
+            .get("output")
+            .is_none_or(|o| o.get("reference").is_none())
+    {
+        output.reference = Some(Reference::Exact);
+    }
+    Some(Job {
+        scene,
+        solver: solver?.ok()?,
+        output,
+    })
+}
+
+/// A part of the document as far as it parsed: its invalid fields hold their defaults (their
+/// errors are in the walker), so that the checks across parts can still run.
+struct Parsed<T> {
+    value: T,
+    ok: bool,
+}
+
+impl<T> Parsed<T> {
+    fn valid(value: T) -> Parsed<T> {
+        Parsed { value, ok: true }
+    }
+
+    fn ok(self) -> Option<T> {
+        self.ok.then_some(self.value)
+    }
+}
+
+/// What the checks across parts need of the scene, read from the raw document so that they
+/// run whether or not its surfaces are valid.
+struct Shape {
+    /// 1 (flatland, fredholm) or 2 (3d).
+    dims: u32,
+    surfaces: usize,
+    /// A fredholm scene with an `exact` solution.
+    exact: bool,
+}
+
+impl Shape {
+    fn of(root: &Map<String, Value>, limits: &Limits) -> Option<Shape> {
+        let scene = root.get("scene")?;
+        let count = || {
+            let n = scene.get("surfaces")?.as_array()?.len();
+            (1..=limits.max_surfaces).contains(&n).then_some(n)
+        };
+        let (dims, surfaces) = match scene.get("kind")?.as_str()? {
+            "flatland" => (1, count()?),
+            "3d" => (2, count()?),
+            "fredholm" => (1, 1),
+            _ => return None,
+        };
+        Some(Shape {
+            dims,
+            surfaces,
+            exact: scene.get("exact").is_some(),
+        })
+    }
+
+    /// The unknowns of the projection method at this order and resolution.
+    fn basis_size(&self, order: usize, resolution: usize) -> usize {
+        let per_side = resolution.saturating_mul(order + 1);
+        self.surfaces
+            .saturating_mul(per_side.saturating_pow(self.dims))
+    }
 }
 
 fn scene(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Scene> {
@@ -144,9 +213,10 @@ fn scene(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Scene> {
     Some(Scene { name, kind })
 }
 
-/// Names are unique, and some surface emits: over the surfaces that parsed (`None` for the
-/// others). A surface that did not parse counts as emitting if its `emission` reads as a
-/// positive number, so that its own error is not followed by a wrong one.
+/// Names are unique, and some surface emits. Names are read from every surface that has a
+/// valid one, also those with an error in another field. A surface that did not parse counts
+/// as emitting if its `emission` reads as a positive number, so that its own error is not
+/// followed by a wrong one.
 fn check_surfaces<'a>(
     w: &mut Walker,
     raw: &[Value],
@@ -155,20 +225,28 @@ fn check_surfaces<'a>(
     let mut seen = std::collections::HashMap::new();
     let mut any = false;
     for (i, (surface, raw)) in parsed.zip(raw).enumerate() {
-        let Some((n, m)) = surface else {
-            let positive = |v: &Value| v.as_f64().is_some_and(|x| x > 0.0);
-            any |= raw.get("emission").is_some_and(|e| {
-                positive(e) || e.as_array().is_some_and(|a| a.iter().any(positive))
-            });
-            continue;
+        let name = match surface {
+            Some((n, m)) => {
+                any |= m.emission.iter().any(|e| *e > 0.0);
+                Some(n.as_str())
+            }
+            None => {
+                let positive = |v: &Value| v.as_f64().is_some_and(|x| x > 0.0);
+                any |= raw.get("emission").is_some_and(|e| {
+                    positive(e) || e.as_array().is_some_and(|a| a.iter().any(positive))
+                });
+                raw.get("name")
+                    .and_then(Value::as_str)
+                    .filter(|n| valid_name(n))
+            }
         };
-        any |= m.emission.iter().any(|e| *e > 0.0);
-        if let Some(first) = seen.insert(n.as_str(), i) {
+        let Some(n) = name else { continue };
+        if let Some(first) = seen.insert(n, i) {
             w.error(
                 format!("/scene/surfaces/{i}/name"),
                 format!("duplicate surface name \"{n}\" (also surface {first})"),
             );
-            seen.insert(n.as_str(), first);
+            seen.insert(n, first);
         }
     }
     if !any {
@@ -237,8 +315,9 @@ fn material(w: &mut Walker, map: &Map<String, Value>, path: &str) -> Option<Mate
             w,
             e,
             &child(path, "emission"),
-            |x| x >= 0.0,
-            "emission is ≥ 0",
+            // B reaches E / (1 − ρ) and its squares are summed: beyond 1e12 they overflow
+            |x| (0.0..=1e12).contains(&x),
+            "emission is from 0 to 1e12",
         ),
         None => Some([0.0; 3]),
     };
@@ -274,7 +353,7 @@ fn surface_name(w: &mut Walker, map: &Map<String, Value>, path: &str) -> Option<
     let n = w.required(map, path, "name")?;
     let p = child(path, "name");
     let s = w.string(n, &p)?;
-    if s.is_empty() || s.len() > 128 || s.contains(['/', '\\']) || s.chars().any(char::is_control) {
+    if !valid_name(s) {
         w.error(
             &p,
             "a surface name is 1 to 128 characters with no slash or control character",
@@ -282,6 +361,12 @@ fn surface_name(w: &mut Walker, map: &Map<String, Value>, path: &str) -> Option<
         return None;
     }
     Some(s.to_string())
+}
+
+/// 1 to 128 characters, none of them a slash or a control character (a name is a path
+/// segment of `surfaces/<name>.png`).
+fn valid_name(s: &str) -> bool {
+    !s.is_empty() && s.len() <= 128 && !s.contains(['/', '\\']) && !s.chars().any(char::is_control)
 }
 
 fn interval(w: &mut Walker, v: &Value, path: &str) -> Option<[f64; 2]> {
@@ -421,7 +506,12 @@ fn check_parallelogram(w: &mut Walker, c: &[[f64; 3]; 4], path: &str) -> bool {
     true
 }
 
-fn solver(w: &mut Walker, v: &Value, limits: &Limits, kind: Option<&str>) -> Option<Solver> {
+fn solver(
+    w: &mut Walker,
+    v: &Value,
+    limits: &Limits,
+    kind: Option<&str>,
+) -> Option<Parsed<Solver>> {
     let path = "/solver";
     let map = w.object(
         v,
@@ -536,17 +626,20 @@ fn solver(w: &mut Walker, v: &Value, limits: &Limits, kind: Option<&str>) -> Opt
     };
     let tolerance = positive("tolerance", d.tolerance, &mut ok);
     let epsilon = positive("epsilon", d.epsilon, &mut ok);
-    ok.then_some(Solver {
-        method,
-        basis,
-        order,
-        resolution,
-        keep,
-        iteration,
-        tolerance,
-        max_iterations,
-        quadrature,
-        epsilon,
+    Some(Parsed {
+        value: Solver {
+            method,
+            basis,
+            order,
+            resolution,
+            keep,
+            iteration,
+            tolerance,
+            max_iterations,
+            quadrature,
+            epsilon,
+        },
+        ok,
     })
 }
 
@@ -575,7 +668,7 @@ fn keep(w: &mut Walker, v: &Value, path: &str) -> Option<Keep> {
     }
 }
 
-fn output(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Output> {
+fn output(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Parsed<Output>> {
     let path = "/output";
     let map = w.object(
         v,
@@ -603,12 +696,20 @@ fn output(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Output> {
         Some(v) => w.integer(v, "/output/coefficients", 0, 100_000),
         None => Some(d.coefficients),
     };
-    Some(Output {
-        image: image?,
-        camera: camera?,
-        grid: grid?,
-        reference: reference?,
-        coefficients: coefficients?,
+    let ok = image.is_some()
+        && camera.is_some()
+        && grid.is_some()
+        && reference.is_some()
+        && coefficients.is_some();
+    Some(Parsed {
+        value: Output {
+            image: image.unwrap_or(d.image),
+            camera: camera.flatten(),
+            grid: grid.unwrap_or(d.grid),
+            reference: reference.flatten(),
+            coefficients: coefficients.unwrap_or(d.coefficients),
+        },
+        ok,
     })
 }
 
@@ -667,6 +768,7 @@ fn camera(w: &mut Walker, v: &Value) -> Option<Camera> {
     let look_at = w
         .required(map, path, "look_at")
         .and_then(|v| w.coordinates::<3>(v, "/output/camera/look_at"));
+    let given_up = map.contains_key("up");
     let up = match map.get("up") {
         Some(v) => w.numbers::<3>(v, "/output/camera/up"),
         None => Some([0.0, 1.0, 0.0]),
@@ -694,14 +796,23 @@ fn camera(w: &mut Walker, v: &Value) -> Option<Camera> {
         );
         return None;
     }
-    let cross = [
-        dir[1] * up[2] - dir[2] * up[1],
-        dir[2] * up[0] - dir[0] * up[2],
-        dir[0] * up[1] - dir[1] * up[0],
-    ];
-    let un = (up[0] * up[0] + up[1] * up[1] + up[2] * up[2]).sqrt();
-    let cn = (cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]).sqrt();
-    if un == 0.0 || cn <= 1e-9 * dn * un {
+    let across = |up: [f64; 3]| {
+        let cross = [
+            dir[1] * up[2] - dir[2] * up[1],
+            dir[2] * up[0] - dir[0] * up[2],
+            dir[0] * up[1] - dir[1] * up[0],
+        ];
+        let un = (up[0] * up[0] + up[1] * up[1] + up[2] * up[2]).sqrt();
+        let cn = (cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]).sqrt();
+        un > 0.0 && cn > 1e-9 * dn * un
+    };
+    // without an `up`, +y is up unless the camera looks along y: then +z is
+    let up = if !given_up && !across(up) {
+        [0.0, 0.0, 1.0]
+    } else {
+        up
+    };
+    if !across(up) {
         w.error(
             "/output/camera/up",
             "up is zero or parallel to the viewing direction",
@@ -756,56 +867,50 @@ fn reference(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Reference> {
 /// 1024² cells on each of a Cornell box's 16 surfaces would be a 2 GB result.
 pub const MAX_RESULT_CELLS: usize = 1 << 18;
 
-fn cross_checks(w: &mut Walker, job: &Job, limits: &Limits) {
-    let surfaces = job.surface_names().len();
-    let per_surface = match job.scene.kind {
-        SceneKind::ThreeD(_) => job.output.grid * job.output.grid,
-        _ => job.output.grid,
-    };
-    if surfaces * per_surface > MAX_RESULT_CELLS {
+fn cross_checks(w: &mut Walker, shape: &Shape, solver: &Solver, output: &Output, limits: &Limits) {
+    let per_surface = output.grid.pow(shape.dims);
+    if shape.surfaces * per_surface > MAX_RESULT_CELLS {
         w.error(
             "/output/grid",
             format!(
-                "{surfaces} surfaces × {per_surface} cells is more than the {MAX_RESULT_CELLS} cell means a result may hold"
+                "{} surfaces × {per_surface} cells is more than the {MAX_RESULT_CELLS} cell means a result may hold",
+                shape.surfaces
             ),
         );
     }
-    let fredholm_exact = matches!(&job.scene.kind, SceneKind::Fredholm(f) if f.exact.is_some());
-    match job.output.reference {
-        Some(Reference::Exact) if !fredholm_exact => w.error(
+    let basis_size = shape.basis_size(solver.order, solver.resolution);
+    match output.reference {
+        Some(Reference::Exact) if !shape.exact => w.error(
             "/output/reference",
             "\"exact\" needs a fredholm scene with an `exact` solution",
         ),
         Some(Reference::Finer { order, resolution }) => {
-            if order < job.solver.order || resolution < job.solver.resolution {
+            if order < solver.order || resolution < solver.resolution {
                 w.error(
                     "/output/reference",
                     format!(
                         "the reference must be at least as fine as the solve (order ≥ {}, resolution ≥ {})",
-                        job.solver.order, job.solver.resolution
+                        solver.order, solver.resolution
                     ),
                 );
-            } else if order == job.solver.order && resolution == job.solver.resolution {
+            } else if order == solver.order && resolution == solver.resolution {
                 w.error(
                     "/output/reference",
                     "the reference is the same discretisation as the solve: make it finer",
                 );
             } else {
-                let mut finer = job.clone();
-                finer.solver.order = order;
-                finer.solver.resolution = resolution;
-                if finer.solver.basis == BasisKind::Wavelet && !resolution.is_power_of_two() {
+                if solver.basis == BasisKind::Wavelet && !resolution.is_power_of_two() {
                     w.error(
                         "/output/reference/resolution",
                         "the wavelet basis needs a power of two",
                     );
                 }
-                if finer.basis_size() > limits.max_basis_functions {
+                let finer = shape.basis_size(order, resolution);
+                if finer > limits.max_basis_functions {
                     w.error(
                         "/output/reference",
                         format!(
-                            "the reference needs {} basis functions, more than max_basis_functions ({})",
-                            finer.basis_size(),
+                            "the reference needs {finer} basis functions, more than max_basis_functions ({})",
                             limits.max_basis_functions
                         ),
                     );
@@ -814,20 +919,20 @@ fn cross_checks(w: &mut Walker, job: &Job, limits: &Limits) {
         }
         _ => {}
     }
-    if job.solver.method == Method::Projection && job.basis_size() > limits.max_basis_functions {
+    if solver.method == Method::Projection && basis_size > limits.max_basis_functions {
         w.error(
             "/solver/resolution",
             format!(
                 "the projection matrix would have {n}² entries ({mib:.0} MiB): {n} basis functions is more than max_basis_functions ({max}); lower resolution or order",
-                n = job.basis_size(),
-                mib = (job.basis_size() as f64).powi(2) * 8.0 / (1024.0 * 1024.0),
+                n = basis_size,
+                mib = (basis_size as f64).powi(2) * 8.0 / (1024.0 * 1024.0),
                 max = limits.max_basis_functions
             ),
         );
     }
-    if let Keep::Top(n) = job.solver.keep {
-        let entries = job.basis_size().saturating_mul(job.basis_size());
-        if job.solver.method == Method::Projection && n > entries {
+    if let Keep::Top(n) = solver.keep {
+        let entries = basis_size.saturating_mul(basis_size);
+        if solver.method == Method::Projection && n > entries {
             w.error(
                 "/solver/keep/top",
                 format!("top {n} is more than the {entries} matrix entries"),
@@ -903,10 +1008,13 @@ mod tests {
             "/output/grid",
             "/output/image/raw",
             "/output/image/mesh",
-            // no surface emits (a misspelt key, a negative value), and 12 is not a power of
-            // two for the default wavelet basis
+            // no surface emits (a misspelt key, a negative value), the name is given twice
+            // (by two surfaces that are invalid otherwise), 12 is not a power of two for the
+            // default wavelet basis, and "exact" needs a fredholm scene
             "/scene/surfaces",
+            "/scene/surfaces/1/name",
             "/solver/resolution",
+            "/output/reference",
         ];
         want.sort();
         assert_eq!(got, want);
@@ -948,20 +1056,89 @@ mod tests {
             [
                 "/scene/surfaces",
                 "/scene/surfaces/0/reflectance",
+                "/scene/surfaces/1/name",
                 "/solver/order",
                 "/solver/resolution"
             ]
         );
-        // a surface that did not parse still counts as emitting if its emission says so (and
-        // its name is unknown, so no duplicate); a misspelt basis does not make the resolution
-        // wrong
+        // a surface that did not parse still counts as emitting if its emission says so, and
+        // its name still counts; a misspelt basis does not make the resolution wrong
         let lit = json!({"scene": {"kind": "flatland", "surfaces": [
             {"name": "a", "segment": [[0, 0], [1, 0]], "reflectance": 1.5, "emission": [0, 2, 0]},
-            {"name": "a", "segment": [[0, 1], [1, 1]], "reflectance": 0.5}]},
+            {"name": "b", "segment": [[0, 1], [1, 1]], "reflectance": 0.5}]},
             "solver": {"basis": "scalng", "resolution": 12}});
         let mut got = errors(lit);
         got.sort();
         assert_eq!(got, ["/scene/surfaces/0/reflectance", "/solver/basis"]);
+        // the checks across parts run beside an invalid surface, camera or image: the basis
+        // size, the cells a result may hold, the reference's size
+        let quad = |c: Value| json!({"name": "q", "corners": c, "reflectance": 0.5, "emission": 1});
+        let mut got = errors(json!({"scene": {"kind": "3d", "surfaces": [
+            quad(json!([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 2, 0]]))]},
+            "solver": {"resolution": 128},
+            "output": {"grid": 1024, "image": {"width": 4096, "height": 4097},
+                       "reference": {"order": 6, "resolution": 256}}}));
+        got.sort();
+        assert_eq!(
+            got,
+            [
+                "/output/grid",
+                "/output/image",
+                "/output/reference",
+                "/scene/surfaces/0/corners",
+                "/solver/resolution"
+            ]
+        );
+        let mut got = errors(json!({"scene": {"kind": "3d", "surfaces": [
+            quad(json!([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]))]},
+            "output": {"grid": 1024, "camera": {"eye": [0, 0, 1], "look_at": [0, 0, 1]}}}));
+        got.sort();
+        assert_eq!(got, ["/output/camera/look_at", "/output/grid"]);
+    }
+
+    #[test]
+    fn a_fredholm_exact_solution_is_the_default_reference() {
+        let doc = json!({"scene": {"kind": "fredholm", "domain": [0, 1], "kernel": "x*y",
+            "source": "1", "exact": "1 + 1.5*x"}});
+        let job = parse_value(&doc, &Limits::default()).unwrap();
+        assert_eq!(job.output.reference, Some(Reference::Exact));
+        let mut finer = doc.clone();
+        finer["output"] = json!({"reference": {"order": 3, "resolution": 16}});
+        let job = parse_value(&finer, &Limits::default()).unwrap();
+        assert!(matches!(
+            job.output.reference,
+            Some(Reference::Finer { .. })
+        ));
+        let mut none = doc;
+        none["scene"].as_object_mut().unwrap().remove("exact");
+        let job = parse_value(&none, &Limits::default()).unwrap();
+        assert_eq!(job.output.reference, None);
+    }
+
+    #[test]
+    fn a_camera_looking_along_y_gets_z_up_unless_it_says_otherwise() {
+        let doc = |camera: Value| {
+            json!({"scene": {"kind": "3d", "surfaces": [{"name": "q",
+                "corners": [[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], "emission": 1,
+                "reflectance": 0.5}]}, "output": {"camera": camera}})
+        };
+        let down = json!({"eye": [0.5, 2, 0.5], "look_at": [0.5, 0, 0.5]});
+        let job = parse_value(&doc(down.clone()), &Limits::default()).unwrap();
+        assert_eq!(job.output.camera.unwrap().up, [0.0, 0.0, 1.0]);
+        let mut told = down;
+        told["up"] = json!([0, 1, 0]);
+        assert_eq!(errors(doc(told)), ["/output/camera/up"]);
+    }
+
+    #[test]
+    fn emission_is_bounded() {
+        // 1e308 is finite, but B = E / (1 − ρ) and the solver's sums of squares are not
+        let doc = |e: f64| {
+            json!({"scene": {"kind": "flatland", "surfaces": [
+                {"name": "a", "segment": [[0, 0], [1, 0]], "reflectance": 0.5, "emission": e}]}})
+        };
+        assert!(errors(doc(1e12)).is_empty());
+        assert_eq!(errors(doc(1e308)), ["/scene/surfaces/0/emission"]);
     }
 
     #[test]

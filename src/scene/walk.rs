@@ -71,8 +71,17 @@ impl Walker {
     pub fn number(&mut self, v: &Value, path: &str) -> Option<f64> {
         match v.as_f64() {
             Some(x) if x.is_finite() => Some(x),
+            // numbers are kept as written, so a JSON number beyond f64 (1e999) reaches here
+            // as a number that does not read as a finite f64
             Some(_) => {
                 self.error(path, "expected a finite number");
+                None
+            }
+            None if v.is_number() => {
+                self.error(
+                    path,
+                    format!("{v} is not a finite number (beyond ±1.8e308)"),
+                );
                 None
             }
             None => {

@@ -401,6 +401,12 @@ impl Queue {
             .is_some_and(|f| f.saturating_add(ttl) <= now_ms())
     }
 
+    /// Makes the lazily written records durable ([`Store::sync`]): a synchronous render that
+    /// answers 503 hands its job over to the client, which a crash must not lose.
+    pub fn sync(&self) -> Result<(), Problem> {
+        self.inner.store.sync().map_err(internal)
+    }
+
     /// Queues a validated document, or answers the job that already has this document.
     /// `durable`: the job is on disk before this returns (a 202 promises that); otherwise it
     /// is written lazily and becomes durable with the next durable write (at the latest its

@@ -102,6 +102,18 @@ pub async fn read_document(
         )
     })?;
     let value: Value = serde_json::from_str(text).map_err(|e| {
+        // JSON nested deeper than the parser follows (128 levels) is still JSON: it is an
+        // invalid document, since none of its fields nests that deep
+        if e.to_string().starts_with("recursion limit exceeded") {
+            return Problem::invalid(&crate::scene::DocumentErrors(vec![
+                crate::scene::FieldError {
+                    path: String::new(),
+                    message: format!(
+                        "nested deeper than 128 levels ({e}); a job document nests 6 levels at most"
+                    ),
+                },
+            ]));
+        }
         Problem::new(
             StatusCode::BAD_REQUEST,
             format!("the body is not JSON: {e}"),
@@ -414,6 +426,9 @@ pub async fn render_now(
     };
     let limit = state.config.sync_timeout;
     let Some(status) = wait_final(&entry, limit).await else {
+        // from here the job is the client's to follow by its id: on disk before the answer
+        let queue = state.queue.clone();
+        blocking(move || queue.sync()).await?;
         return Err(Problem::new(
             StatusCode::SERVICE_UNAVAILABLE,
             format!(

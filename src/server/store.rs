@@ -62,6 +62,14 @@ impl Store {
         Ok(())
     }
 
+    /// Makes every write so far durable: the lazily written records among them are on disk
+    /// when this returns (a durable commit persists the non-durable ones before it).
+    pub fn sync(&self) -> Result<(), StoreError> {
+        let txn = self.db.begin_write().map_err(dberr)?;
+        txn.commit().map_err(dberr)?;
+        Ok(())
+    }
+
     /// Writes a job's record and its files in one transaction.
     pub fn put_finished<T: Serialize>(
         &self,

@@ -438,11 +438,20 @@ impl Hierarchy<'_> {
                 .par_iter()
                 .map(|&(r, s)| self.estimate(r, s))
                 .collect();
+            // a level of a fine refinement judges millions of pairs (seconds of rays): each
+            // pair looks at the cancel first, so that a cancel stops the level at once
             let verdicts: Vec<(Verdict, u64)> = pairs
                 .par_iter()
                 .zip(slots.par_iter())
-                .map(|(&(r, s), &slot)| self.judge(r, s, estimates[slot]))
+                .map(|(&(r, s), &slot)| {
+                    if progress.cancelled() {
+                        (Verdict::Inert, 0)
+                    } else {
+                        self.judge(r, s, estimates[slot])
+                    }
+                })
                 .collect();
+            progress.check()?;
             let mut next = Vec::new();
             for (&(r, s), (verdict, rays)) in pairs.iter().zip(verdicts) {
                 self.rays += rays;
