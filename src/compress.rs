@@ -479,6 +479,9 @@ pub struct MagnitudePicture {
     pub block: usize,
     /// The smallest magnitude kept by thresholding (entries below it are drawn as dropped).
     pub cut: f64,
+    /// What a value is: an entry of the kernel matrix, or the mean kernel value of a link of
+    /// the hierarchy over the finest cells its block covers.
+    pub links: bool,
 }
 
 pub fn picture(m: &Dense, max_side: usize, cut: f64) -> MagnitudePicture {
@@ -497,6 +500,7 @@ pub fn picture(m: &Dense, max_side: usize, cut: f64) -> MagnitudePicture {
         values,
         block,
         cut,
+        links: false,
     }
 }
 
@@ -524,6 +528,7 @@ pub fn block_picture(
         values,
         block,
         cut: 0.0,
+        links: true,
     }
 }
 
@@ -544,6 +549,7 @@ pub fn picture_sparse(m: &Csr, max_side: usize, cut: f64) -> MagnitudePicture {
         values,
         block,
         cut,
+        links: false,
     }
 }
 

@@ -217,8 +217,11 @@ pub fn solve_job(
             segments,
             order,
             resolution,
-            quadrature,
-            job.solver.epsilon,
+            crate::hierarchy::flatland::Tuning {
+                quadrature,
+                epsilon: job.solver.epsilon,
+                coefficients: job.output.coefficients,
+            },
             settings,
             progress,
         )?,

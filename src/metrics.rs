@@ -87,6 +87,9 @@ pub fn l2_against(field: &Field, measure: f64, exact: impl Fn(f64) -> f64) -> (f
 }
 
 /// Emitted and absorbed power per channel from the fields of E and H and the surfaces' ρ.
+/// Absorbed is what the fronts absorb, (1 − ρ) ∫ H: light that leaves an open scene or falls
+/// on the (black) back of a surface is not in it, so the ratio is 1 only in a closed scene
+/// whose backs no light reaches.
 pub fn energy(
     emission: &[Field],
     irradiance: &[Field],

@@ -127,7 +127,8 @@ async function showResult(status) {
     });
     const pic = document.createElement("td"); const img = document.createElement("img");
     img.alt = `B over ${s.name}`; img.src = status.links.surfaces[s.name];
-    pic.appendChild(img); tr.appendChild(pic);
+    const full = document.createElement("a"); full.href = img.src; full.target = "_blank";
+    full.appendChild(img); pic.appendChild(full); tr.appendChild(pic);
     body.appendChild(tr);
   });
   const m = result.metrics, c = result.coefficients;

@@ -650,6 +650,26 @@ async fn operations_routes() {
     for status in ["200", "409", "422", "503", "504"] {
         assert!(render[status].is_object(), "render lacks {status}");
     }
+    for answer in ["image/png", "application/json"] {
+        assert!(render["200"]["content"][answer].is_object(), "{answer}");
+    }
+    // the content type /metrics is served with, and the load shedding of every route but
+    // the probes and /metrics
+    let (_, h, _) = call(&router, get("/metrics")).await;
+    let served = h[header::CONTENT_TYPE].to_str().unwrap();
+    assert!(api["paths"]["/metrics"]["get"]["responses"]["200"]["content"][served].is_object());
+    for (path, method) in [
+        ("/api/v1/jobs", "post"),
+        ("/api/v1/jobs/{id}", "get"),
+        ("/api/v1/jobs/{id}", "delete"),
+        ("/", "get"),
+    ] {
+        assert!(
+            api["paths"][path][method]["responses"]["503"].is_object(),
+            "{method} {path}"
+        );
+    }
+    assert!(api["paths"]["/healthz"]["get"]["responses"]["503"].is_null());
     let png = &api["paths"]["/api/v1/jobs/{id}/{artifact}"]["get"]["responses"];
     assert!(png["304"].is_object());
     let schema = &png["200"]["content"]["image/png"]["schema"];

@@ -16,10 +16,6 @@ use crate::scene::{Exposure, Job, SceneKind};
 use image::{ImageEncoder, Rgb, RgbImage};
 use rayon::prelude::*;
 
-/// Width and height of one per-surface image.
-const STRIP: (u32, u32) = (512, 48);
-const QUAD: (u32, u32) = (256, 256);
-
 /// All images of a job, PNG-encoded.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Images {
@@ -50,11 +46,17 @@ impl Images {
 pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
     let spec = job.output.image;
     let names = job.surface_names();
-    let white = white_point(job, &outcome.fields);
     // Independent images, drawn in parallel; each is deterministic on its own.
     let main = || {
         let img = match &job.scene.kind {
-            SceneKind::ThreeD(_) => camera::render(job, outcome, spec.width, spec.height),
+            SceneKind::ThreeD(_) => {
+                let mut img = camera::render(job, outcome, spec.width, spec.height);
+                // spec: the scene's name is shown in images (the charts have it as a title)
+                if let Some(name) = job.scene.name.as_deref().filter(|_| spec.width >= 160) {
+                    plot::caption(&mut img, name);
+                }
+                img
+            }
             _ => plot::radiosity(job, &names, &outcome.fields, spec.width, spec.height),
         };
         encode_png(&img)
@@ -74,7 +76,21 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
         outcome
             .fields
             .par_iter()
-            .map(|f| encode_png(&surface_image(f, white, surface_size(f))))
+            .zip(&names)
+            .map(|(f, name)| {
+                // each surface on its own scale (the bar says which), unless the document
+                // sets one: a wall beside a light is not black, and B that varies by a few
+                // per cent is shown from its least value up
+                let range = match job.output.image.exposure {
+                    Exposure::White(w) => (0.0, w),
+                    Exposure::Auto => surface_range(f),
+                };
+                let title = match &job.scene.name {
+                    Some(scene) => format!("{scene}: B over {name}"),
+                    None => format!("B over {name}"),
+                };
+                encode_png(&plot::surface(&title, f, range))
+            })
             .collect()
     };
     let ((image, sparsity), (coefficients, surfaces)) = rayon::join(
@@ -89,11 +105,30 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
     }
 }
 
-fn surface_size(f: &Field) -> (u32, u32) {
-    if f.dims == 2 {
-        QUAD
+/// The range of B that a surface's own image spans: from 0, or from its least value when that
+/// is more than half its greatest (a strip whose B varies by 10 % would be one grey from 0), to
+/// its greatest.
+fn surface_range(f: &Field) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for leaf in &f.leaves {
+        for i in 0..=4 {
+            for j in 0..=(if f.dims == 2 { 4 } else { 0 }) {
+                let s = leaf.s[0] + (leaf.s[1] - leaf.s[0]) * i as f64 / 4.0;
+                let t = leaf.t[0] + (leaf.t[1] - leaf.t[0]) * j as f64 / 4.0;
+                for v in f.eval_leaf(leaf, s, t) {
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+        }
+    }
+    if !(hi > 0.0 && hi.is_finite()) {
+        return (0.0, 1.0);
+    }
+    if lo > 0.5 * hi && hi > lo {
+        (lo, hi)
     } else {
-        STRIP
+        (0.0, hi)
     }
 }
 
@@ -133,22 +168,6 @@ pub fn tone(v: [f64; 3], white: f64) -> Rgb<u8> {
     Rgb([c(v[0]), c(v[1]), c(v[2])])
 }
 
-/// B over one surface: a strip along s (1D) or the unit square with t upwards (2D).
-pub fn surface_image(f: &Field, white: f64, (w, h): (u32, u32)) -> RgbImage {
-    if f.dims == 2 {
-        RgbImage::from_fn(w, h, |x, y| {
-            let s = (x as f64 + 0.5) / w as f64;
-            let t = 1.0 - (y as f64 + 0.5) / h as f64;
-            tone(f.eval(s, t), white)
-        })
-    } else {
-        let row: Vec<Rgb<u8>> = (0..w)
-            .map(|x| tone(f.eval((x as f64 + 0.5) / w as f64, 0.0), white))
-            .collect();
-        RgbImage::from_fn(w, h, |x, _| row[x as usize])
-    }
-}
-
 /// PNG bytes of an image (fast deflate, adaptive filter: deterministic for the same pixels).
 pub fn encode_png(img: &RgbImage) -> Vec<u8> {
     let mut out = Vec::new();
@@ -173,14 +192,27 @@ mod tests {
 
     #[test]
     fn surface_images_map_b_to_colour_with_t_upwards() {
-        // B = 1 on the lower half (t < 1/2), 0 above.
+        // B = 0 on the lower half (t < 1/2), a quarter of white above: down the middle of
+        // the plot, the grey of a quarter comes before (above) the black
         let mut local = vec![[0.0; 3]; 4];
-        local[0] = [1.0; 3];
-        local[1] = [1.0; 3];
+        local[2] = [0.25; 3];
+        local[3] = [0.25; 3];
         let f = Field::uniform_square(0, 2, &local);
-        let img = surface_image(&f, 1.0, (10, 10));
-        assert_eq!(img.get_pixel(5, 9).0, [255, 255, 255]);
-        assert_eq!(img.get_pixel(5, 0).0, [0, 0, 0]);
+        let img = plot::surface("", &f, (0.0, 1.0));
+        let x = (img.width() - 100) / 2;
+        let rows = |v: u8| -> Vec<u32> {
+            (0..img.height())
+                .filter(|&y| img.get_pixel(x, y).0 == [v; 3])
+                .collect()
+        };
+        let (grey, black) = (rows(136), rows(0));
+        assert!(
+            grey.len() > 100 && black.len() > 100,
+            "{} {}",
+            grey.len(),
+            black.len()
+        );
+        assert!(grey.iter().max() < black.iter().min());
         assert_eq!(tone([0.25, 2.0, -1.0], 1.0).0, [136, 255, 0]);
     }
 
@@ -203,6 +235,7 @@ mod tests {
             values: (0..16).map(|i| 10f64.powi(-(i % 5))).collect(),
             block: 1,
             cut: 1e-3,
+            links: false,
         };
         let s = plot::sparsity(&p);
         assert_eq!(encode_png(&s), encode_png(&plot::sparsity(&p)));

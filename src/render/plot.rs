@@ -108,13 +108,17 @@ pub fn radiosity(job: &Job, names: &[String], fields: &[Field], w: u32, h: u32) 
         .name
         .clone()
         .unwrap_or_else(|| "Radiosity".to_string());
+    // one panel per surface: a column of up to six, then a grid; when the panels would be too
+    // small to read, every surface in one chart, one after another along the x axis
+    let n = fields.len();
+    let cols = n.div_ceil(6);
+    let rows = n.div_ceil(cols);
+    if (w as usize) / cols < 200 || (h as usize) / rows < 120 {
+        return along(&title, fields, differ, ydesc, w, h);
+    }
     canvas(w, h, |root| {
         root.fill(&WHITE)?;
         // long names get a smaller title rather than being cut at the edges
-        // one panel per surface: a column of up to six, then a grid
-        let n = fields.len();
-        let cols = n.div_ceil(6);
-        let rows = n.div_ceil(cols);
         let small = (h as usize) / rows < 220;
         let title = if small && differ {
             format!("{title} (R, G, B: red, green, blue)")
@@ -147,6 +151,187 @@ pub fn radiosity(job: &Job, names: &[String], fields: &[Field], w: u32, h: u32) 
         Ok(())
     })
     .0
+}
+
+/// B along every surface in one chart, surface i over [i, i + 1] of the x axis, for scenes with
+/// more surfaces than panels fit in the image.
+fn along(title: &str, fields: &[Field], differ: bool, ydesc: &str, w: u32, h: u32) -> RgbImage {
+    let n = fields.len();
+    let channels: Vec<usize> = if differ { vec![0, 1, 2] } else { vec![0] };
+    // one run of points per surface and channel, so that no line joins two surfaces
+    let runs: Vec<(usize, Vec<(f64, f64)>)> = fields
+        .iter()
+        .enumerate()
+        .flat_map(|(i, f)| {
+            channels
+                .iter()
+                .map(move |&c| (c, samples(f, Some(c), |s| i as f64 + s)))
+        })
+        .collect();
+    let (lo, hi) = runs
+        .iter()
+        .flat_map(|(_, p)| p)
+        .fold((0.0f64, f64::MIN_POSITIVE), |(lo, hi), &(_, y)| {
+            (lo.min(y), hi.max(y))
+        });
+    let pad = (hi - lo) * 0.05;
+    let title = if differ {
+        format!("{title} (R, G, B: red, green, blue)")
+    } else {
+        title.to_string()
+    };
+    let title = title.as_str();
+    canvas(w, h, |root| {
+        root.fill(&WHITE)?;
+        let size = (w as f64 / (0.55 * title.chars().count().max(1) as f64)).clamp(11.0, 18.0);
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, (SANS, size))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(62)
+            .build_cartesian_2d(0f64..n as f64, (lo - pad.min(lo.abs()))..(hi + pad))?;
+        chart
+            .configure_mesh()
+            .label_style((SANS, 11))
+            .x_labels(n.min(16) + 1)
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.3}"))
+            .x_desc(format!(
+                "surface i over [i, i + 1], s from 0 to 1 within it ({n} surfaces in document order)"
+            ))
+            .y_desc(ydesc)
+            .light_line_style(WHITE.mix(0.0))
+            .draw()?;
+        chart.draw_series((1..n).map(|i| {
+            PathElement::new(
+                vec![(i as f64, lo - pad), (i as f64, hi + pad)],
+                BLACK.mix(0.15),
+            )
+        }))?;
+        for (c, points) in runs {
+            let color = if differ {
+                CHANNELS[c].1
+            } else {
+                CHANNELS[2].1
+            };
+            chart.draw_series(LineSeries::new(points, color.stroke_width(1)))?;
+        }
+        Ok(())
+    })
+    .0
+}
+
+/// `surfaces/<name>.png`: B over one surface in its own colours, with axes and a colour bar:
+/// the (s, t) square with t upwards (3D), or a strip along s (flatland, fredholm). Each
+/// channel of B maps linearly (then sRGB-like) from `range.0` (black) to `range.1` (white),
+/// which the bar shows in B.
+pub fn surface(title: &str, f: &Field, range: (f64, f64)) -> RgbImage {
+    let square = f.dims == 2;
+    let (lo, hi) = range;
+    let tone = |v: [f64; 3]| super::tone(v.map(|x| x - lo), hi - lo);
+    let (w, h) = if square { (440u32, 360u32) } else { (660, 150) };
+    let (mut img, (xr, yr)) = canvas(w, h, |root| {
+        root.fill(&WHITE)?;
+        let size = (w as f64 / (0.6 * title.chars().count().max(1) as f64)).clamp(10.0, 15.0);
+        let root = root.titled(title, (SANS, size))?;
+        let (left, right) = root.split_horizontally(w - 100);
+        let mut chart = ChartBuilder::on(&left)
+            .margin(8)
+            .x_label_area_size(32)
+            .y_label_area_size(if square { 36 } else { 8 })
+            .build_cartesian_2d(0f64..1f64, 0f64..1f64)?;
+        let mut mesh = chart.configure_mesh();
+        mesh.disable_mesh()
+            .label_style((SANS, 11))
+            .x_labels(5)
+            .y_labels(5)
+            .x_desc("s")
+            .x_label_formatter(&|v| format!("{v:.2}"))
+            .y_label_formatter(&|v| format!("{v:.2}"));
+        if square {
+            mesh.y_desc("t");
+        } else {
+            mesh.disable_y_axis();
+        }
+        mesh.draw()?;
+        let range = chart.plotting_area().get_pixel_range();
+        let mut bar = ChartBuilder::on(&right)
+            .margin_top(8)
+            .margin_bottom(if square { 40 } else { 8 })
+            .margin_right(30)
+            .y_label_area_size(52)
+            .build_cartesian_2d(0f64..1f64, lo..hi)?;
+        bar.configure_mesh()
+            .disable_mesh()
+            .disable_x_axis()
+            .label_style((SANS, 10))
+            .y_labels(if square { 6 } else { 4 })
+            .y_desc("B")
+            .y_label_formatter(&|v| short(*v))
+            .draw()?;
+        let steps = 64;
+        bar.draw_series((0..steps).map(|i| {
+            let a = lo + (hi - lo) * i as f64 / steps as f64;
+            let b = lo + (hi - lo) * (i + 1) as f64 / steps as f64;
+            let g = tone([(a + b) / 2.0; 3]).0;
+            Rectangle::new([(0.0, a), (1.0, b)], RGBColor(g[0], g[1], g[2]).filled())
+        }))?;
+        Ok(range)
+    });
+    let (x0, y0) = (xr.start.max(0) as u32, yr.start.max(0) as u32);
+    let (pw, ph) = (
+        (xr.end - xr.start).max(1) as u32,
+        (yr.end - yr.start).max(1) as u32,
+    );
+    for py in 0..ph.min(h.saturating_sub(y0)) {
+        let t = 1.0 - (py as f64 + 0.5) / ph as f64;
+        for px in 0..pw.min(w.saturating_sub(x0)) {
+            let s = (px as f64 + 0.5) / pw as f64;
+            let b = f.eval(s, if square { t } else { 0.0 });
+            img.put_pixel(x0 + px, y0 + py, tone(b));
+        }
+    }
+    img
+}
+
+/// Writes `text` in the lower left corner of a rendered image, white on a dark band (the
+/// scene's name on its camera view).
+pub fn caption(img: &mut RgbImage, text: &str) {
+    let (w, h) = img.dimensions();
+    let size = (h as f64 / 28.0).clamp(10.0, 16.0);
+    let band = (size * 1.6) as i32;
+    let mut buf = std::mem::take(img).into_raw();
+    draw_on(&mut buf, w, h, |root| {
+        root.draw(&Rectangle::new(
+            [(0, h as i32 - band), (w as i32, h as i32)],
+            BLACK.mix(0.45).filled(),
+        ))?;
+        root.draw(&Text::new(
+            text.to_string(),
+            ((size * 0.5) as i32, h as i32 - band + (size * 0.25) as i32),
+            (SANS, size).into_font().color(&WHITE),
+        ))?;
+        Ok(())
+    });
+    *img = RgbImage::from_raw(w, h, buf).expect("the same buffer");
+}
+
+/// A tick label of three significant digits, without trailing zeros.
+fn short(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    let digits = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+    if (1e-3..1e5).contains(&v.abs()) {
+        let s = format!("{v:.digits$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    } else {
+        format!("{v:.2e}")
+    }
 }
 
 fn line_chart(
@@ -284,7 +469,22 @@ pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
     let n = (p.side * p.block) as f64;
     let (mut img, (xr, yr)) = canvas(w, h, |root| {
         root.fill(&WHITE)?;
-        let root = root.titled("Kernel matrix magnitudes |K_ij|", (SANS, 18))?;
+        let (title, rows, columns, bar_desc) = if p.links {
+            (
+                "Links: mean kernel value of each link's block",
+                "receiver cell i (finest cells, surface by surface)",
+                "source cell j",
+                "mean K of the link (log scale)",
+            )
+        } else {
+            (
+                "Kernel matrix magnitudes |K_ij|",
+                "row i",
+                "column j",
+                "|K| (log scale)",
+            )
+        };
+        let root = root.titled(title, (SANS, 18))?;
         let (left, right) = root.split_horizontally(w - 110);
         let mut chart = ChartBuilder::on(&left)
             .margin(10)
@@ -295,8 +495,8 @@ pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
             .configure_mesh()
             .disable_mesh()
             .label_style((SANS, 11))
-            .x_desc("column j")
-            .y_desc("row i")
+            .x_desc(columns)
+            .y_desc(rows)
             .x_label_formatter(&|v| format!("{v:.0}"))
             .y_label_formatter(&|v| format!("{v:.0}"))
             .draw()?;
@@ -311,7 +511,7 @@ pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
             .disable_mesh()
             .disable_x_axis()
             .label_style((SANS, 11))
-            .y_desc("|K| (log scale)")
+            .y_desc(bar_desc)
             .y_label_formatter(&|v| format!("{v:.0e}"))
             .draw()?;
         let steps = 128;
@@ -382,7 +582,15 @@ pub fn coefficients(c: &Coefficients) -> RgbImage {
     } else {
         (1e-16, 1.0)
     };
-    let x_max = c.matrix_entries.max(1) as f64;
+    // the ranks span the whole matrix for the projection method (its dropped entries are
+    // drawn past the cut), and the links' coefficients for the hierarchy, which holds no more
+    let spanned = c
+        .sorted_ranks
+        .last()
+        .map_or(0, |r| r + 1)
+        .max(c.kept_entries);
+    let hierarchy = spanned < c.matrix_entries && c.cut == 0.0;
+    let x_max = if hierarchy { spanned } else { c.matrix_entries }.max(1) as f64;
     canvas(w, h, |root| {
         root.fill(&WHITE)?;
         let mut chart = ChartBuilder::on(root)
@@ -419,10 +627,14 @@ pub fn coefficients(c: &Coefficients) -> RgbImage {
                 vec![(kept, lo), (kept, hi)],
                 red.stroke_width(2),
             ))?
-            .label(format!(
-                "cut: {} of {} kept",
-                c.kept_entries, c.matrix_entries
-            ))
+            .label(if hierarchy {
+                format!(
+                    "{} link coefficients (a full matrix: {})",
+                    c.kept_entries, c.matrix_entries
+                )
+            } else {
+                format!("cut: {} of {} kept", c.kept_entries, c.matrix_entries)
+            })
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], red.stroke_width(2)));
         if c.cut > 0.0 {
             chart.draw_series(DashedLineSeries::new(

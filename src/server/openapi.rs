@@ -73,9 +73,52 @@ pub struct ResultDocument {
         JobFailure,
         Problem,
         PathError
-    ))
+    )),
+    modifiers(&Shed)
 )]
 pub struct ApiDoc;
+
+/// Every route but the probes and `/metrics` sheds load past `max_concurrent_requests`
+/// with 503 and `Retry-After` (see `server::mod`): listed once here rather than on each.
+struct Shed;
+
+impl utoipa::Modify for Shed {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        use utoipa::openapi::{ContentBuilder, Ref, ResponseBuilder};
+        let shed = ResponseBuilder::new()
+            .description(
+                "too many requests at once (max_concurrent_requests), or the queue is full; \
+                 Retry-After says when to try again",
+            )
+            .content(
+                "application/problem+json",
+                ContentBuilder::new()
+                    .schema(Some(Ref::from_schema_name("Problem")))
+                    .build(),
+            )
+            .build();
+        for (path, item) in openapi.paths.paths.iter_mut() {
+            if ["/healthz", "/readyz", "/metrics"].contains(&path.as_str()) {
+                continue;
+            }
+            for op in [
+                &mut item.get,
+                &mut item.post,
+                &mut item.delete,
+                &mut item.put,
+                &mut item.patch,
+            ]
+            .into_iter()
+            .flatten()
+            {
+                op.responses
+                    .responses
+                    .entry("503".to_string())
+                    .or_insert_with(|| shed.clone().into());
+            }
+        }
+    }
+}
 
 pub fn document() -> utoipa::openapi::OpenApi {
     ApiDoc::openapi()

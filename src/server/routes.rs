@@ -397,14 +397,17 @@ fn png(bytes: Vec<u8>, headers: &HeaderMap) -> Response {
 #[utoipa::path(post, path = "/api/v1/render", tag = "jobs",
     request_body(content = super::openapi::JobDocument, content_type = "application/json"),
     responses(
-        (status = 200, description = "the image, or the result with Accept: application/json", content_type = "image/png", body = super::openapi::Png),
+        (status = 200, description = "the image, or the result when Accept ranks application/json above image/png", content(
+            (super::openapi::Png = "image/png"),
+            (super::openapi::ResultDocument = "application/json")
+        )),
         (status = 400, body = Problem, content_type = "application/problem+json"),
         (status = 413, body = Problem, content_type = "application/problem+json"),
         (status = 415, body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "invalid document, or a solve this build does not support", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "the job was cancelled while the client waited", body = Problem, content_type = "application/problem+json"),
         (status = 500, description = "the solve failed", body = Problem, content_type = "application/problem+json"),
-        (status = 503, description = "would wait longer than sync_timeout (Location: the job, which goes on), or the queue is full (Retry-After)", body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "would wait longer than sync_timeout (Location: the job, which goes on), the queue is full, or too many requests at once (max_concurrent_requests); Retry-After", body = Problem, content_type = "application/problem+json"),
         (status = 504, description = "the solve ran past job_timeout", body = Problem, content_type = "application/problem+json"),
     ))]
 pub async fn render_now(
@@ -551,7 +554,7 @@ pub async fn readyz(State(state): State<AppState>) -> Result<&'static str, Probl
 }
 
 /// Prometheus text exposition.
-#[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200, description = "Prometheus text", body = String, content_type = "text/plain")))]
+#[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200, description = "Prometheus metrics in the OpenMetrics text format", body = String, content_type = "application/openmetrics-text; version=1.0.0; charset=utf-8")))]
 pub async fn metrics(State(state): State<AppState>) -> Response {
     state.queue.update_gauges();
     (

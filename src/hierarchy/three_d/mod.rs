@@ -594,10 +594,12 @@ pub fn solve(
     let emission = h.fields(|e| e.e.clone());
     let zero = vec![[0.0; 3]; h.k * h.k];
     let irradiance = h.fields(|e| e.reported(&e.h, &zero));
+    // the links' coefficients that are not zero: what the hierarchy keeps of the operator
     let mut sorted: Vec<f64> = h
         .links
         .iter()
         .flat_map(|l| l.block.iter().map(|v| v.abs()))
+        .filter(|v| *v > 0.0)
         .collect();
     sorted.par_sort_unstable_by(|a, b| b.total_cmp(a));
     // Σ‖block‖² per pair of surfaces, for eq. (5) by Parseval over the link blocks
@@ -627,11 +629,7 @@ pub fn solve(
         // basis_size² couplings, the links hold the nonzero ones they keep
         basis_size: leaf_b.len(),
         matrix_entries: leaf_b.len() * leaf_b.len(),
-        kept_entries: h
-            .links
-            .iter()
-            .map(|l| l.block.iter().filter(|v| **v != 0.0).count())
-            .sum(),
+        kept_entries: sorted.len(),
         cut: 0.0,
         magnitudes,
         picture: Some(h.picture(512)),
