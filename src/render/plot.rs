@@ -278,11 +278,7 @@ pub fn surface(title: &str, f: &Field, range: (f64, f64)) -> RgbImage {
         }))?;
         Ok(range)
     });
-    let (x0, y0) = (xr.start.max(0) as u32, yr.start.max(0) as u32);
-    let (pw, ph) = (
-        (xr.end - xr.start).max(1) as u32,
-        (yr.end - yr.start).max(1) as u32,
-    );
+    let (x0, y0, pw, ph) = area_pixels(&xr, &yr);
     for py in 0..ph.min(h.saturating_sub(y0)) {
         let t = 1.0 - (py as f64 + 0.5) / ph as f64;
         for px in 0..pw.min(w.saturating_sub(x0)) {
@@ -314,6 +310,17 @@ pub fn caption(img: &mut RgbImage, text: &str) {
         Ok(())
     });
     *img = RgbImage::from_raw(w, h, buf).expect("the same buffer");
+}
+
+/// The top left corner and the size in pixels of a chart's plotting area, from its pixel
+/// ranges, for the pictures that fill it pixel by pixel.
+fn area_pixels(xr: &std::ops::Range<i32>, yr: &std::ops::Range<i32>) -> (u32, u32, u32, u32) {
+    (
+        xr.start.max(0) as u32,
+        yr.start.max(0) as u32,
+        (xr.end - xr.start).max(1) as u32,
+        (yr.end - yr.start).max(1) as u32,
+    )
 }
 
 /// A tick label of three significant digits, without trailing zeros.
@@ -525,11 +532,7 @@ pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
         }))?;
         Ok(range)
     });
-    let (x0, y0) = (xr.start.max(0) as u32, yr.start.max(0) as u32);
-    let (pw, ph) = (
-        (xr.end - xr.start).max(1) as u32,
-        (yr.end - yr.start).max(1) as u32,
-    );
+    let (x0, y0, pw, ph) = area_pixels(&xr, &yr);
     let (llo, lhi) = (lo.log10(), hi.log10());
     // At most one cell per pixel: blocks of f × f cells keep their largest magnitude, so that
     // no entry is lost to the scaling.
