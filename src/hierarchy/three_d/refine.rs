@@ -33,7 +33,7 @@ use crate::congruence::Congruence;
 use crate::cover::Exposure;
 use crate::progress::{Cancelled, Progress};
 use crate::projection::three_d::VISIBILITY_GRID;
-use crate::space::quad_quad;
+use crate::space::{add, dot, norm, normalize, quad_quad, scale, sub};
 use crate::transfer::{self, Integrand};
 use crate::visibility3d::{pair_seed, visible_fraction_over, Piece, Seen, Steps, STEP};
 use rayon::prelude::*;
@@ -136,7 +136,8 @@ impl Hierarchy<'_> {
     /// ([`transfer::point_polygon`], clipped to the point's horizon) at a 3 × 3 grid of points
     /// that reaches the receiver's edges: the part of a source that a receiver sees may be a
     /// thin strip next to their common line (the floor in front of a box), which interior
-    /// samples miss.
+    /// samples miss; and at four points next to where the source meets the receiver's plane
+    /// (a box's face standing inside a floor element).
     fn estimate(&self, r: u32, s: u32) -> (f64, f64) {
         let (er, es) = (&self.elements[r as usize], &self.elements[s as usize]);
         let qr = &self.geo.quads[er.piece.surface];
@@ -153,6 +154,26 @@ impl Hierarchy<'_> {
                     p.t[0] + v * (p.t[1] - p.t[0]),
                 );
                 // a point behind the source's plane receives nothing from it
+                if qs.side(x) > 0.0 {
+                    f = f.max(transfer::point_polygon(x, qr.n, &cb));
+                }
+            }
+        }
+        // and next to where the source meets the receiver's plane, on its front side: a wall
+        // standing inside a floor element (its foot may be the grid's middle line, in the
+        // wall's plane) lights the strip in front of its foot with a form factor up to ½,
+        // which the grid above misses; one point per corner of the source, projected onto
+        // the receiver and moved a hundredth of the receiver's size along the source's normal
+        let along = sub(qs.n, scale(qr.n, dot(qs.n, qr.n)));
+        if norm(along) > 1e-9 {
+            let nudge = scale(normalize(along), 0.01 * transfer::diameter(&ca));
+            let local = |x: f64, lo: f64, hi: f64| ((x - lo) / (hi - lo)).clamp(0.01, 0.99);
+            for c in cb {
+                let (cs, ct) = qr.params(add(sub(c, scale(qr.n, qr.side(c))), nudge));
+                let x = qr.at(
+                    p.s[0] + local(cs, p.s[0], p.s[1]) * (p.s[1] - p.s[0]),
+                    p.t[0] + local(ct, p.t[0], p.t[1]) * (p.t[1] - p.t[0]),
+                );
                 if qs.side(x) > 0.0 {
                     f = f.max(transfer::point_polygon(x, qr.n, &cb));
                 }
