@@ -465,10 +465,7 @@ impl<'a> Hierarchy<'a> {
         for link in old {
             let (lr, ls) = (self.elements[link.r].level, self.elements[link.s].level);
             let at_bottom = lr >= self.max_level && ls >= self.max_level;
-            if below[link.r]
-                && lr < self.max_level
-                && self.elements[link.s].surface != self.elements[link.r].surface
-            {
+            if below[link.r] && lr < self.max_level {
                 changed = true;
                 for c in self.split(link.r) {
                     self.refine(c, link.s, false);

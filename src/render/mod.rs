@@ -132,33 +132,6 @@ fn surface_range(f: &Field) -> (f64, f64) {
     }
 }
 
-/// The value of B that maps to white: the document's exposure, or the brightest sampled value.
-pub fn white_point(job: &Job, fields: &[Field]) -> f64 {
-    match job.output.image.exposure {
-        Exposure::White(w) => w,
-        Exposure::Auto => {
-            let mut max = 0.0f64;
-            for f in fields {
-                for leaf in &f.leaves {
-                    for i in 0..=4 {
-                        for j in 0..=(if f.dims == 2 { 4 } else { 0 }) {
-                            let s = leaf.s[0] + (leaf.s[1] - leaf.s[0]) * i as f64 / 4.0;
-                            let t = leaf.t[0] + (leaf.t[1] - leaf.t[0]) * j as f64 / 4.0;
-                            let v = f.eval_leaf(leaf, s, t);
-                            max = max.max(v[0]).max(v[1]).max(v[2]);
-                        }
-                    }
-                }
-            }
-            if max > 0.0 && max.is_finite() {
-                max
-            } else {
-                1.0
-            }
-        }
-    }
-}
-
 /// B to a display colour: linear scale to `white`, clamped, sRGB-like gamma.
 pub fn tone(v: [f64; 3], white: f64) -> Rgb<u8> {
     let c = |x: f64| {

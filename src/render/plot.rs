@@ -120,12 +120,8 @@ pub fn radiosity(job: &Job, names: &[String], fields: &[Field], w: u32, h: u32) 
         root.fill(&WHITE)?;
         // long names get a smaller title rather than being cut at the edges
         let small = (h as usize) / rows < 220;
-        let title = if small && differ {
-            format!("{title} (R, G, B: red, green, blue)")
-        } else {
-            title.clone()
-        };
-        let size = (w as f64 / (0.55 * title.chars().count().max(1) as f64)).clamp(11.0, 18.0);
+        let title = with_channels(&title, small && differ);
+        let size = title_size(w, &title, 0.55, 11.0..=18.0);
         let root = root.titled(&title, (SANS, size))?;
         let panels = root.split_evenly((rows, cols));
         for ((area, f), name) in panels.iter().zip(fields).zip(names) {
@@ -175,17 +171,12 @@ fn along(title: &str, fields: &[Field], differ: bool, ydesc: &str, w: u32, h: u3
             (lo.min(y), hi.max(y))
         });
     let pad = (hi - lo) * 0.05;
-    let title = if differ {
-        format!("{title} (R, G, B: red, green, blue)")
-    } else {
-        title.to_string()
-    };
-    let title = title.as_str();
+    let title = with_channels(title, differ);
     canvas(w, h, |root| {
         root.fill(&WHITE)?;
-        let size = (w as f64 / (0.55 * title.chars().count().max(1) as f64)).clamp(11.0, 18.0);
+        let size = title_size(w, &title, 0.55, 11.0..=18.0);
         let mut chart = ChartBuilder::on(root)
-            .caption(title, (SANS, size))
+            .caption(&title, (SANS, size))
             .margin(10)
             .x_label_area_size(40)
             .y_label_area_size(62)
@@ -232,7 +223,7 @@ pub fn surface(title: &str, f: &Field, range: (f64, f64)) -> RgbImage {
     let (w, h) = if square { (440u32, 360u32) } else { (660, 150) };
     let (mut img, (xr, yr)) = canvas(w, h, |root| {
         root.fill(&WHITE)?;
-        let size = (w as f64 / (0.6 * title.chars().count().max(1) as f64)).clamp(10.0, 15.0);
+        let size = title_size(w, title, 0.6, 10.0..=15.0);
         let root = root.titled(title, (SANS, size))?;
         let (left, right) = root.split_horizontally(w - 100);
         let mut chart = ChartBuilder::on(&left)
@@ -321,6 +312,22 @@ fn area_pixels(xr: &std::ops::Range<i32>, yr: &std::ops::Range<i32>) -> (u32, u3
         (xr.end - xr.start).max(1) as u32,
         (yr.end - yr.start).max(1) as u32,
     )
+}
+
+/// A chart's title, naming the channels' colours when the chart has no legend for them.
+fn with_channels(title: &str, name_them: bool) -> String {
+    if name_them {
+        format!("{title} (R, G, B: red, green, blue)")
+    } else {
+        title.to_string()
+    }
+}
+
+/// The font size of a title on a `w`-pixel-wide image: smaller for a long one, rather than
+/// cut at the edges (`per_char` is a character's width in sizes).
+fn title_size(w: u32, title: &str, per_char: f64, range: std::ops::RangeInclusive<f64>) -> f64 {
+    (w as f64 / (per_char * title.chars().count().max(1) as f64))
+        .clamp(*range.start(), *range.end())
 }
 
 /// A tick label of three significant digits, without trailing zeros.

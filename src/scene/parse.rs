@@ -66,9 +66,7 @@ fn document(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Job> {
     // scene.md: a fredholm equation's `exact` solution, when given, is what the error
     // metrics are measured against, unless the document asks for a finer solve instead
     if matches!(&scene.kind, SceneKind::Fredholm(f) if f.exact.is_some())
-        && root
-            .get("output")
-            .is_none_or(|o| o.get("reference").is_none())
+        && output.reference.is_none()
     {
         output.reference = Some(Reference::Exact);
     }
