@@ -2,8 +2,9 @@
 //! m = 0 … 2, n = 16 … 1024: kernel evaluations per second (criterion reports the throughput).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use wavrad::flatland::projection as flatland;
+use wavrad::methods::projection::Discretization;
 use wavrad::progress::Silent;
-use wavrad::projection::{flatland, Discretization};
 use wavrad::scene::{parse_value, Limits, SceneKind};
 
 fn segments() -> Vec<wavrad::scene::Segment> {

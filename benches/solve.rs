@@ -2,11 +2,11 @@
 //! entries. Flatland scene 1 at n = 256, m = 1 in the wavelet basis, keeping the top N entries.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use wavrad::compress;
+use wavrad::methods::compress;
+use wavrad::methods::projection::Discretization;
+use wavrad::methods::solve::{self, Settings};
 use wavrad::progress::Silent;
-use wavrad::projection::{self, Discretization};
 use wavrad::scene::{parse_value, Iteration, Keep, Limits};
-use wavrad::solve::{self, Settings};
 
 fn sweeps(c: &mut Criterion) {
     let doc: serde_json::Value =
@@ -17,7 +17,7 @@ fn sweeps(c: &mut Criterion) {
         cells: 256,
         quadrature: 3,
     };
-    let mut system = projection::build(&job, disc, &Silent).unwrap();
+    let mut system = wavrad::job::system(&job, disc, &Silent).unwrap();
     compress::to_wavelet(&mut system, &Silent).unwrap();
     let ranking = compress::Ranking::new(&system.matrix.data, &Silent).unwrap();
     let rho: Vec<[f64; 3]> = (0..system.size())

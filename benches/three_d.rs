@@ -5,13 +5,13 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rayon::prelude::*;
 use std::hint::black_box;
-use wavrad::bvh::Bvh;
 use wavrad::job;
 use wavrad::progress::Silent;
 use wavrad::render::camera;
 use wavrad::scene::{parse_document, parse_value, Job, Limits, SceneKind};
-use wavrad::space::Parallelogram;
-use wavrad::visibility3d::SplitMix;
+use wavrad::three_d::bvh::Bvh;
+use wavrad::three_d::geometry::Parallelogram;
+use wavrad::three_d::visibility::SplitMix;
 
 fn scene(name: &str) -> String {
     std::fs::read_to_string(format!("{}/scenes/{name}.json", env!("CARGO_MANIFEST_DIR")))

@@ -2,14 +2,18 @@
 //! (build → transform → threshold → solve → metrics) and the assembly of the result.
 //! Kinds and methods plug in by producing a [`Solution`].
 
-use crate::compress::{self, KeptMatrix, MagnitudePicture};
-use crate::field::Field;
+use crate::flatland::projection as flatland;
+use crate::math::field::Field;
+use crate::methods::compress::{self, KeptMatrix, MagnitudePicture};
+use crate::methods::projection::{Dense, Discretization, Layout, System};
+pub use crate::methods::solution::JobError;
+use crate::methods::solution::Solution;
+use crate::methods::solve;
 use crate::metrics;
 use crate::progress::{Cancelled, Phase, Progress};
-use crate::projection::{self, flatland, Dense, Discretization, Layout, System};
 use crate::result::*;
 use crate::scene::{BasisKind, Job, Keep, Method, Reference, Rgb, SceneKind};
-use crate::solve::{self, SolveError, Solved};
+use crate::three_d::projection as three_d;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -23,63 +27,6 @@ pub struct Outcome {
     pub fields: Vec<Field>,
     /// The kernel matrix magnitudes in the chosen basis (projection method).
     pub picture: Option<MagnitudePicture>,
-}
-
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum JobError {
-    #[error("cancelled")]
-    Cancelled,
-    #[error("{0}")]
-    Diverged(String),
-    #[error("{0}")]
-    Unsupported(String),
-    /// The problem outgrew the memory the solver allows itself.
-    #[error("{0}")]
-    TooLarge(String),
-}
-
-impl From<Cancelled> for JobError {
-    fn from(_: Cancelled) -> Self {
-        JobError::Cancelled
-    }
-}
-
-impl From<SolveError> for JobError {
-    fn from(e: SolveError) -> Self {
-        match e {
-            SolveError::Cancelled => JobError::Cancelled,
-            e => JobError::Diverged(e.to_string()),
-        }
-    }
-}
-
-/// What a method produces; the result is assembled from it.
-#[derive(Debug, Clone)]
-pub struct Solution {
-    pub fields: Vec<Field>,
-    /// B as the images show it, where that differs from `fields`: on an element that a
-    /// solid partly covers, the polynomial of its exposed part up to the outline
-    /// ([`crate::cover`]), where `fields` holds the element's projection.
-    pub shown: Option<Vec<Field>>,
-    pub emission: Vec<Field>,
-    pub irradiance: Vec<Field>,
-    pub basis_size: usize,
-    pub matrix_entries: usize,
-    pub kept_entries: usize,
-    pub cut: f64,
-    /// Sampled sorted magnitudes of the matrix: (rank, magnitude), decreasing.
-    pub magnitudes: Vec<(usize, f64)>,
-    pub picture: Option<MagnitudePicture>,
-    pub solved: Solved,
-    /// Eq. (5) and the surface pairs it left out.
-    pub kernel_error: Option<f64>,
-    pub left_out: Vec<(usize, usize)>,
-    pub hierarchy: Option<HierarchyStats>,
-    pub timings: BTreeMap<String, f64>,
-    /// Σ K_ij² of the kept entries per (row surface, column surface), `S × S`, for eq. (5).
-    pub kept_squares: Vec<f64>,
-    /// Kernel evaluations the matrix (or the links) took, where they are counted.
-    pub kernel_evaluations: Option<u64>,
 }
 
 /// Runs a job.
@@ -182,6 +129,19 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
     })
 }
 
+/// The Galerkin system of the projection method for any kind of scene.
+pub fn system(
+    job: &Job,
+    disc: Discretization,
+    progress: &dyn Progress,
+) -> Result<System, Cancelled> {
+    match &job.scene.kind {
+        SceneKind::Flatland(segments) => flatland::build(segments, disc, progress),
+        SceneKind::Fredholm(f) => crate::fredholm::build(f, disc, progress),
+        SceneKind::ThreeD(quads) => three_d::build(quads, disc, progress),
+    }
+}
+
 /// Solves the job's scene at the given order, resolution and keep rule.
 pub fn solve_job(
     job: &Job,
@@ -213,11 +173,11 @@ pub fn solve_job(
                     .into(),
             ))
         }
-        (SceneKind::Flatland(segments), Method::Hierarchical) => crate::hierarchy::flatland::solve(
+        (SceneKind::Flatland(segments), Method::Hierarchical) => crate::flatland::hierarchy::solve(
             segments,
             order,
             resolution,
-            crate::hierarchy::flatland::Tuning {
+            crate::flatland::hierarchy::Tuning {
                 quadrature,
                 epsilon: job.solver.epsilon,
                 coefficients: job.output.coefficients,
@@ -226,19 +186,11 @@ pub fn solve_job(
             progress,
         )?,
         (SceneKind::ThreeD(_), Method::Hierarchical) => {
-            crate::hierarchy::three_d::solve(job, order, resolution, progress)?
+            crate::three_d::hierarchy::solve(job, order, resolution, progress)?
         }
-        (SceneKind::ThreeD(quads), Method::Projection) => {
+        (_, Method::Projection) => {
             let t = Instant::now();
-            let system = projection::three_d::build(quads, disc, progress)?;
-            let build_ms = ms(t);
-            let mut sol = projection_solve(system, job, keep, progress)?;
-            sol.timings.insert("projection".into(), build_ms);
-            sol
-        }
-        _ => {
-            let t = Instant::now();
-            let system = projection::build(job, disc, progress)?;
+            let system = system(job, disc, progress)?;
             let build_ms = ms(t);
             let mut sol = projection_solve(system, job, keep, progress)?;
             sol.timings.insert("projection".into(), build_ms);
@@ -388,7 +340,7 @@ fn kernel_error_1d(
             let [a, b] = f.domain;
             let n = fine.cells;
             let h = (b - a) / n as f64;
-            let rule = crate::quadrature::Rule::gauss(fine.quadrature + 2);
+            let rule = crate::math::quadrature::Rule::gauss(fine.quadrature + 2);
             let mut total = 0.0;
             for ca in 0..n {
                 for cb in 0..n {
@@ -417,10 +369,10 @@ fn kernel_error_3d(
     progress: &dyn Progress,
 ) -> Result<KernelError3d, Cancelled> {
     progress.check()?;
-    let geo = projection::three_d::Geometry::new(quads);
+    let geo = three_d::Geometry::new(quads);
     let touching = geo.touching();
     let touch = |i: usize, j: usize| touching.contains(&(i.min(j), i.max(j)));
-    let k2 = projection::three_d::kernel_squares(
+    let k2 = three_d::kernel_squares(
         &geo,
         disc.cells.clamp(2, 4),
         disc.quadrature + 1,

@@ -19,26 +19,15 @@
 // Numerical loops index several arrays by the same subscript, as the papers' formulas do.
 #![allow(clippy::needless_range_loop)]
 
-pub mod basis;
-pub mod bvh;
-pub mod compress;
-pub mod congruence;
-pub mod cover;
-pub mod field;
-pub mod geometry;
-pub mod hierarchy;
+pub mod flatland;
+pub mod fredholm;
 pub mod job;
-pub mod kernel;
+pub mod math;
+pub mod methods;
 pub mod metrics;
 pub mod progress;
-pub mod projection;
-pub mod quadrature;
 pub mod render;
 pub mod result;
 pub mod scene;
 pub mod server;
-pub mod solve;
-pub mod space;
-pub mod transfer;
-pub mod visibility;
-pub mod visibility3d;
+pub mod three_d;

@@ -7,9 +7,9 @@
 //!   reference, integrated exactly piece by piece.
 //! - Energy: emitted power ∫E against absorbed power ∫(1 − ρ)H, H = ∫K B the irradiance.
 
-use crate::compress::Csr;
-use crate::field::Field;
-use crate::quadrature::Rule;
+use crate::math::field::Field;
+use crate::math::quadrature::Rule;
+use crate::methods::compress::Csr;
 use crate::result::EnergyBalance;
 use crate::scene::Rgb;
 

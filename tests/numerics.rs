@@ -6,8 +6,8 @@ mod support;
 use serde_json::{json, Value};
 use support::{cell_means as means, job, relative_l2, run, scene_file, with_solver};
 use wavrad::job::Outcome;
+use wavrad::methods::projection::Discretization;
 use wavrad::progress::Silent;
-use wavrad::projection::{self, Discretization};
 
 /// The slides' eq. (13): B(x) = 1 + ∫₀¹ (x² + xy) B(y) dy, solved by hand:
 /// B = 1 + (42/23) x + (66/23) x².
@@ -126,8 +126,8 @@ fn flatland_furnace_gives_e_over_one_minus_rho() {
 /// Form factors from the order-0 matrix on one cell per segment: F_ij = K_00 √(L_j / L_i).
 #[test]
 fn form_factors_match_crossed_strings() {
-    use wavrad::geometry::V2;
-    use wavrad::kernel::crossed_strings;
+    use wavrad::flatland::geometry::V2;
+    use wavrad::flatland::kernel::crossed_strings;
     let cases = [
         // opposite sides of the unit square
         ([[0.0, 0.0], [1.0, 0.0]], [[1.0, 1.0], [0.0, 1.0]]),
@@ -150,7 +150,7 @@ fn form_factors_match_crossed_strings() {
             cells: 1,
             quadrature: 2,
         };
-        let sys = projection::build(&j, disc, &Silent).unwrap();
+        let sys = wavrad::job::system(&j, disc, &Silent).unwrap();
         let (la, lb) = (sys.measure[0], sys.measure[1]);
         let f_ab = sys.matrix.get(0, 1) * (lb / la).sqrt();
         let f_ba = sys.matrix.get(1, 0) * (la / lb).sqrt();
@@ -190,7 +190,7 @@ fn occluded_form_factor_matches_strings_wrapped_around_the_blocker() {
                 cells,
                 quadrature: 2,
             };
-            let sys = projection::build(&j, disc, &Silent).unwrap();
+            let sys = wavrad::job::system(&j, disc, &Silent).unwrap();
             // ∫∫K = Σ_ab K_ab √(h L_a) √(h L_b)
             let h = 1.0 / cells as f64;
             let mut total = 0.0;

@@ -321,7 +321,7 @@ fn cornell_reference() -> &'static [Vec<(V3, V3)>] {
 /// The Cornell box's floor as the solver has it (green, B at its document's settings), and a
 /// point of that floor as the reference has it from `m` gathers.
 struct Floor {
-    field: wavrad::field::Field,
+    field: wavrad::math::field::Field,
     tracer: Tracer,
 }
 
@@ -455,7 +455,7 @@ fn cornell_box_approaches_path_tracing_as_epsilon_shrinks() {
     // Splitting first the floor's elements along the blocks' feet, against half the
     // tolerance, when something may hide a source from them took the short front from
     // +2.85 % to +2.08 % (at ε = 6.25e-5 from +1.07 % to +0.73 %). Fitting the ceiling
-    // behind the light on its exposed part ([`wavrad::cover`], a lid) took the walls from
+    // behind the light on its exposed part ([`wavrad::three_d::cover`], a lid) took the walls from
     // within 0.69 % (all low) to within 0.23 %. Before, with a 64² reference: the lit sides
     // were up to 4.2 % low before the covered floor under the blocks was left out of the fit
     // of the cells along their feet, the sides were off by up to 4.9 % with one visible
@@ -465,7 +465,7 @@ fn cornell_box_approaches_path_tracing_as_epsilon_shrinks() {
     // before the visible fraction was weighted by the kernel and the oracle looked at the
     // receiver's edges.
     //
-    // [`receiver_first`]: wavrad::hierarchy::three_d::refine::receiver_first
+    // [`receiver_first`]: wavrad::three_d::hierarchy::refine::receiver_first
     let reference = cornell_reference();
     let mut doc = scene_file("cornell-box");
     let mut nets = Vec::new();
@@ -535,7 +535,7 @@ fn the_floor_at_the_foot_of_a_lit_face() {
     // under the block. Measured within 4.7 % (green; +3.8 % and +4.7 % half a unit from the
     // foot, −3.6 % and −1.5 % at 12 units); within 15.5 % (+6.5 % and +15.5 % half a unit
     // from the foot) before coarse receivers were split before their sources
-    // ([`wavrad::hierarchy::three_d::refine::receiver_first`]); fitting one polynomial over the covered and
+    // ([`wavrad::three_d::hierarchy::refine::receiver_first`]); fitting one polynomial over the covered and
     // the exposed part of each such cell, as before the covered part was left out of the
     // fit, gave −50 % at the foot. What is left is the direct light: with every other
     // surface black the floor there is +11–13 % half a unit from the foot, because the
@@ -565,7 +565,7 @@ fn the_floor_at_the_foot_of_an_unlit_face() {
     // the floor in front of the short block's front, which the light does not reach: the
     // block shades that floor and hides half of the room from the points next to its foot.
     // Rays from inside a coarse floor element see none of that, so such elements are split
-    // against half the tolerance ([`wavrad::hierarchy::three_d::refine::CONTACT_SHARE`]).
+    // against half the tolerance ([`wavrad::three_d::hierarchy::refine::CONTACT_SHARE`]).
     // Measured 1 / 2 / 5 / 10 / 17 units in front: +5.3 / +7.7 / +2.6 / −3.9 / −0.4 %; before
     // coarse receivers were split before their sources +13.6 / +12.2 / +3.4 / −0.4 / −1.2 %,
     // and with the whole tolerance +40 / +37 / +24 / +16 / +11 %
@@ -594,7 +594,7 @@ fn the_floor_at_the_foot_of_an_unlit_face() {
 fn the_ceiling_behind_a_hanging_light_is_dark() {
     // the Cornell box without its blocks: the light hangs 1 unit below the ceiling, which
     // behind it sees only the light's back, so the ceiling is dark up to the light's outline.
-    // Fitted on its exposed part ([`wavrad::cover`]), the four cells above the light are
+    // Fitted on its exposed part ([`wavrad::three_d::cover`]), the four cells above the light are
     // measured +4.8 / +6.7 / +2.1 / −2.6 % of the path tracer (of about 0.06, against 0.2
     // around them), every surface mean within 0.16 %, the cell means 0.18 % net of the noise
     // (+8.7 / +6.5 / +3.3 / +3.3 %, 0.31 % and 0.84 % before coarse receivers were split
@@ -631,7 +631,7 @@ fn a_room_lit_through_its_ceiling() {
     // noise: 0.05 % at order 1 and 1.74 % at order 0, every surface mean within 0.05 % and
     // 1.8 % (all low at order 0: a constant over a coarse source averages its bright spot);
     // before coarse receivers were split before their sources
-    // ([`wavrad::hierarchy::three_d::refine::receiver_first`]), 1.49 % and 6.98 %, with
+    // ([`wavrad::three_d::hierarchy::refine::receiver_first`]), 1.49 % and 6.98 %, with
     // the walls' corner cells 5 % and 36 % bright
     let wall = |name: &str, corners: Value, rho: Value| json!({ "name": name, "corners": corners, "reflectance": rho });
     let doc = json!({

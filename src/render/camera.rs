@@ -11,11 +11,11 @@
 //!   elements as they are.
 //! - The back of a surface is black (one-sided surfaces); missed rays are black.
 
-use crate::bvh::Bvh;
-use crate::field::Field;
 use crate::job::Outcome;
+use crate::math::field::Field;
 use crate::scene::{Camera, Exposure, Job, SceneKind};
-use crate::space::{add, cross, dot, norm, normalize, scale, sub, Parallelogram, V3};
+use crate::three_d::bvh::Bvh;
+use crate::three_d::geometry::{add, cross, dot, norm, normalize, scale, sub, Parallelogram, V3};
 use image::{Rgb, RgbImage};
 use rayon::prelude::*;
 

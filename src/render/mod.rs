@@ -10,8 +10,8 @@
 pub mod camera;
 pub mod plot;
 
-use crate::field::Field;
 use crate::job::Outcome;
+use crate::math::field::Field;
 use crate::scene::{Exposure, Job, SceneKind};
 use image::{ImageEncoder, Rgb, RgbImage};
 use rayon::prelude::*;
@@ -203,7 +203,7 @@ mod tests {
         let a = encode_png(&plot::coefficients(&c));
         let b = encode_png(&plot::coefficients(&c));
         assert_eq!(a, b);
-        let p = crate::compress::MagnitudePicture {
+        let p = crate::methods::compress::MagnitudePicture {
             side: 4,
             values: (0..16).map(|i| 10f64.powi(-(i % 5))).collect(),
             block: 1,

@@ -2,8 +2,8 @@
 //! the binary (no fontconfig, no files): B along each surface, the kernel matrix magnitudes and
 //! the sorted coefficient magnitudes.
 
-use crate::compress::MagnitudePicture;
-use crate::field::Field;
+use crate::math::field::Field;
+use crate::methods::compress::MagnitudePicture;
 use crate::result::Coefficients;
 use crate::scene::{Job, SceneKind};
 use image::RgbImage;

@@ -12,7 +12,7 @@
 //! (a Jacobi sweep of B = E + ρ K B in the multiresolution basis) to the solver's tolerance,
 //! then re-refines the links with the new B ("BF refinement") until no link changes.
 //!
-//! Where a solid stands on a surface ([`crate::cover`]), the elements across the outline of
+//! Where a solid stands on a surface ([`crate::three_d::cover`]), the elements across the outline of
 //! its foot are split to the finest level before any link is made, and every partly covered
 //! element holds the polynomial of its exposed part: links into it deliver the masked moments
 //! ∫ χ φ H (their blocks weighted by its masked Gram matrices and the visible fraction of its
@@ -22,17 +22,17 @@
 pub mod refine;
 pub mod tree;
 
-use crate::basis::Filters;
-use crate::cover::{Exposure, Mask, Partial};
-use crate::field::{Field, Leaf};
-use crate::job::{JobError, Solution};
+use crate::math::basis::Filters;
+use crate::math::field::{Field, Leaf};
+use crate::methods::solution::{JobError, Solution};
+use crate::methods::solve::Solved;
 use crate::progress::{Cancelled, Phase, Progress};
-use crate::projection::three_d::{piece_emission, Geometry};
 use crate::result::HierarchyStats;
 use crate::scene::{Job, Quad, Rgb, SceneKind};
-use crate::solve::Solved;
-use crate::transfer::Accuracy;
-use crate::visibility3d::Piece;
+use crate::three_d::cover::{Exposure, Mask, Partial};
+use crate::three_d::geometry::Piece;
+use crate::three_d::projection::{piece_emission, Geometry};
+use crate::three_d::transfer::Accuracy;
 use rayon::prelude::*;
 use refine::{Factors, Link};
 use std::collections::BTreeMap;
@@ -71,9 +71,9 @@ pub struct Hierarchy<'g> {
     pub hidden: Vec<(u32, u32, Factors)>,
     /// Kernel evaluations spent on link blocks so far.
     pub evaluations: std::sync::atomic::AtomicU64,
-    /// The covered part of each surface that a solid stands on ([`crate::cover`]).
+    /// The covered part of each surface that a solid stands on ([`crate::three_d::cover`]).
     pub masks: Vec<Option<Mask>>,
-    /// The lines where other surfaces stand on each surface ([`crate::cover::contacts`]).
+    /// The lines where other surfaces stand on each surface ([`crate::three_d::cover::contacts`]).
     pub contacts: Vec<Vec<[[f64; 2]; 2]>>,
     pub elements: Vec<Element>,
     pub links: Vec<Link>,
@@ -158,7 +158,7 @@ impl<'g> Hierarchy<'g> {
             hidden: Vec::new(),
             masks,
             contacts: (0..quads.len())
-                .map(|i| crate::cover::contacts(&geo.quads, i))
+                .map(|i| crate::three_d::cover::contacts(&geo.quads, i))
                 .collect(),
             elements,
             links: Vec::new(),
@@ -360,7 +360,7 @@ impl<'g> Hierarchy<'g> {
     /// The coefficient vectors of the recursion live on the stack: a sweep visits every
     /// element, and one allocation each would cost as much as the arithmetic.
     fn push_pull(&mut self, e: u32, down: &[Rgb], change: &mut f64, norm: &mut f64) {
-        const MAX_KK: usize = crate::transfer::MAX_K * crate::transfer::MAX_K;
+        const MAX_KK: usize = crate::three_d::transfer::MAX_K * crate::three_d::transfer::MAX_K;
         let kk = self.k * self.k;
         let mut total = [[0.0; 3]; MAX_KK];
         let el = &self.elements[e as usize];
@@ -456,7 +456,7 @@ impl<'g> Hierarchy<'g> {
     /// The links as a picture of the operator: the finest cells of every surface in Z-order
     /// (so that every element covers one run of them), receivers down, sources across; each
     /// link fills its block with the mean kernel value it carries, |T_00| / √(A_r A_s).
-    pub fn picture(&self, max_side: usize) -> crate::compress::MagnitudePicture {
+    pub fn picture(&self, max_side: usize) -> crate::methods::compress::MagnitudePicture {
         let per = 1usize << (2 * self.max_level);
         let run = |e: &Element| {
             let shift = self.max_level - e.level;
@@ -472,7 +472,7 @@ impl<'g> Hierarchy<'g> {
             let v = l.block[0].abs() / (r.area * s.area).sqrt();
             (run(r), run(s), v)
         });
-        crate::compress::block_picture(self.quads.len() * per, max_side, blocks)
+        crate::methods::compress::block_picture(self.quads.len() * per, max_side, blocks)
     }
 
     pub fn stats(&self) -> HierarchyStats {
@@ -610,7 +610,7 @@ pub fn solve(
         kept_squares[r.piece.surface * surfaces + s.piece.surface] +=
             l.block.iter().map(|v| v * v).sum::<f64>();
     }
-    let magnitudes = crate::compress::sample_ranks(sorted.len(), job.output.coefficients)
+    let magnitudes = crate::methods::compress::sample_ranks(sorted.len(), job.output.coefficients)
         .into_iter()
         .map(|r| (r, sorted[r]))
         .collect();

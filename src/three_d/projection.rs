@@ -1,20 +1,22 @@
 //! The Galerkin matrix of a 3D scene (slides' eq. (3) kernel, eq. (11) matrix): n × n cells
 //! on every parallelogram, k² = (m + 1)² tensor Legendre functions per cell, orthonormal in
-//! area. Each cell pair is integrated by [`crate::transfer`] (tensor Gauss rules far apart,
+//! area. Each cell pair is integrated by [`crate::three_d::transfer`] (tensor Gauss rules far apart,
 //! adaptive subdivision toward shared edges) and scaled by the fraction of it that is visible
-//! ([`crate::visibility3d`]: no rays when no surface can come between the two cells).
+//! ([`crate::three_d::visibility`]: no rays when no surface can come between the two cells).
 
-use super::{Dense, Discretization, Layout, System};
-use crate::basis::legendre;
-use crate::bvh::Bvh;
-use crate::congruence::Congruence;
-use crate::cover::Mask;
+use crate::math::basis::legendre;
+use crate::math::quadrature::Rule;
+use crate::methods::projection::{Dense, Discretization, Layout, System};
 use crate::progress::{Cancelled, Phase, Progress};
-use crate::quadrature::Rule;
 use crate::scene::Quad;
-use crate::space::{quad_quad, Parallelogram};
-use crate::transfer::{self, Accuracy, Integrand};
-use crate::visibility3d::{self, pair_seed, Piece, Seen, Steps};
+use crate::three_d::bvh::Bvh;
+use crate::three_d::congruence::Congruence;
+use crate::three_d::cover::Mask;
+use crate::three_d::geometry::Piece;
+use crate::three_d::geometry::{quad_quad, Parallelogram};
+use crate::three_d::steps::Steps;
+use crate::three_d::transfer::{self, Accuracy, Integrand};
+use crate::three_d::visibility::{self, pair_seed, Seen};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -49,7 +51,7 @@ impl Geometry {
         }
         Geometry {
             bvh: Bvh::occluders(&quads),
-            occluders: visibility3d::surface_occluders(&quads),
+            occluders: visibility::surface_occluders(&quads),
             facing,
             quads,
         }
@@ -93,11 +95,11 @@ impl Geometry {
     /// Whether no surface can come between pieces `a` and `b` (the hull test alone).
     pub fn unoccluded(&self, a: Piece, b: Piece) -> bool {
         let cand = &self.occluders[a.surface * self.len() + b.surface];
-        !visibility3d::any_occluder(&self.quads, a, b, cand)
+        !visibility::any_occluder(&self.quads, a, b, cand)
     }
 
     /// [`Geometry::visibility`] over the exposed part of `a` only, where `covered` marks a
-    /// covered part of its surface ([`crate::cover`]).
+    /// covered part of its surface ([`crate::three_d::cover`]).
     pub fn visibility_over(
         &self,
         a: Piece,
@@ -110,7 +112,7 @@ impl Geometry {
         if self.unoccluded(a, b) {
             return Seen::CLEAR;
         }
-        visibility3d::visible_fraction_over(&self.bvh, a, covered, b, grid, seed, rays)
+        visibility::visible_fraction_over(&self.bvh, a, covered, b, grid, seed, rays)
     }
 }
 
@@ -298,7 +300,7 @@ pub fn matrix(
 /// order-0 pieces: the denominator of eq. (5). Pairs that touch diverge: `skip` them.
 ///
 /// K is symmetric and so is V, so each unordered pair is integrated once and entered twice;
-/// congruent pairs of pieces ([`crate::congruence`]: most of them on parallel or perpendicular
+/// congruent pairs of pieces ([`crate::three_d::congruence`]: most of them on parallel or perpendicular
 /// walls) share one integral of K², and only the visible fraction is per pair.
 pub fn kernel_squares(
     geo: &Geometry,

@@ -1,10 +1,10 @@
 //! The Galerkin system of a plain Fredholm equation of the second kind on [a, b]
 //! (the slides' analytic test case, eq. (13)): K_ij = ∫∫ K(x,y) N_j(y) N_i(x), E_i = ∫ E N_i.
 
-use super::{Dense, Discretization, Layout, System};
-use crate::basis::legendre;
+use crate::math::basis::legendre;
+use crate::math::quadrature::Rule;
+use crate::methods::projection::{Dense, Discretization, Layout, System};
 use crate::progress::{Cancelled, Phase, Progress};
-use crate::quadrature::Rule;
 use crate::scene::Fredholm;
 use rayon::prelude::*;
 
@@ -65,7 +65,7 @@ pub fn build(
         })?;
     progress.report(Phase::Projection, 1.0);
     // E with a rule a few points finer: E need not be a polynomial.
-    let erule = Rule::gauss((disc.quadrature + 4).min(crate::quadrature::MAX_CACHED));
+    let erule = Rule::gauss((disc.quadrature + 4).min(crate::math::quadrature::MAX_CACHED));
     let mut emission = vec![[0.0; 3]; size];
     let mut v = vec![0.0; k];
     for c in 0..n {

@@ -1,7 +1,7 @@
 //! Congruent pairs of pieces, and how their Galerkin blocks map onto each other.
 //!
 //! The transfer of eq. (11) between two pieces (the slides' Galerkin entries with the kernel of
-//! eq. (3), as [`crate::transfer`] integrates them) depends only on distances and angles, since
+//! eq. (3), as [`crate::three_d::transfer`] integrates them) depends only on distances and angles, since
 //! K = cosθx cosθy / (π r²), and on how each piece is labelled by its parameters (ŝ, t̂) ∈ [0,1]²:
 //! the basis is N_qr = φ_r(ŝ) φ_q(t̂) / √A. So two pairs related by an isometry of space
 //! (translation, rotation or reflection) once each piece is relabelled by one of the eight
@@ -18,8 +18,8 @@
 //! rounded to a grid (2⁻³² of the scene, the caller's `unit`). Of the labellings of both pieces
 //! (and of both orders, when the pair is not directed) the smallest key names the class.
 
-use crate::space::{dot, norm, scale, sub, Parallelogram, V3};
-use crate::visibility3d::Piece;
+use crate::three_d::geometry::Piece;
+use crate::three_d::geometry::{dot, norm, scale, sub, Parallelogram, V3};
 
 /// One of the eight symmetries of a piece's unit square of parameters, as a new labelling:
 /// the old ŝ replaced by 1 − ŝ (`flip_s`), t̂ by 1 − t̂ (`flip_t`), then the two exchanged
@@ -162,7 +162,7 @@ fn ordered(
     (cy, ny): (&[V3; 4], V3),
     unit: f64,
 ) -> (Key, Relabel, Relabel) {
-    let mid = |c: &[V3; 4]| scale(crate::space::add(c[0], c[2]), 0.5);
+    let mid = |c: &[V3; 4]| scale(crate::three_d::geometry::add(c[0], c[2]), 0.5);
     let (mx, my) = (mid(cx), mid(cy));
     let d = sub(my, mx);
     // truncation toward zero: one instruction (round() is a library call here), and odd like
@@ -236,8 +236,8 @@ fn ordered(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::space::{add, cross};
-    use crate::transfer::{block, Accuracy, Integrand};
+    use crate::three_d::geometry::{add, cross};
+    use crate::three_d::transfer::{block, Accuracy, Integrand};
     use rand::{rngs::SmallRng, Rng, SeedableRng};
 
     /// Every labelling.
@@ -371,8 +371,8 @@ mod tests {
                 rng.random_range(-1.0..1.0),
             ]
         };
-        let a = crate::space::normalize(v());
-        let b = crate::space::normalize(cross(a, v()));
+        let a = crate::three_d::geometry::normalize(v());
+        let b = crate::three_d::geometry::normalize(cross(a, v()));
         let c = cross(a, b);
         let c = if rng.random_bool(0.5) {
             scale(c, -1.0)

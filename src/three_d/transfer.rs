@@ -10,10 +10,12 @@
 //! outer point, split as a quadtree around the point. Both recursions stop at a depth limit,
 //! which bounds the cost and the error next to the singular edge.
 
-use crate::basis::legendre;
-use crate::quadrature::Rule;
-use crate::space::{add, cross, dot, norm, point_quad, quad_quad, scale, sub, Parallelogram, V3};
-use crate::visibility3d::Piece;
+use crate::math::basis::legendre;
+use crate::math::quadrature::Rule;
+use crate::three_d::geometry::Piece;
+use crate::three_d::geometry::{
+    add, cross, dot, norm, point_quad, quad_quad, scale, sub, Parallelogram, V3,
+};
 
 /// Largest k = m + 1 (the document allows m ≤ 8) and Gauss rule handled on the stack.
 pub const MAX_K: usize = 9;
@@ -274,11 +276,7 @@ impl Ctx<'_> {
         let [px, py, pz] = points;
         let n = out.len();
         for (j, k) in out.iter_mut().enumerate() {
-            let r = [px[j] - x[0], py[j] - x[1], pz[j] - x[2]];
-            let ca = (r[0] * na[0] + r[1] * na[1] + r[2] * na[2]).max(0.0);
-            let cb = (-(r[0] * nb[0] + r[1] * nb[1] + r[2] * nb[2])).max(0.0);
-            let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-            *k = ca * cb / (std::f64::consts::PI * r2 * r2);
+            *k = kernel(x, na, [px[j], py[j], pz[j]], nb);
         }
         if self.squared {
             out.iter_mut().for_each(|k| *k *= *k);
@@ -457,6 +455,18 @@ impl Ctx<'_> {
     }
 }
 
+/// The slides' eq. (3) without V: K(x, y) = cosθx cosθy / (π r²) for points x, y with unit
+/// front normals nx, ny; zero unless y is in front of x and x in front of y. Without a branch
+/// (the cosines clamped at zero), so that the loops over sample points vectorise.
+#[inline(always)]
+pub fn kernel(x: V3, nx: V3, y: V3, ny: V3) -> f64 {
+    let r = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
+    let cx = (r[0] * nx[0] + r[1] * nx[1] + r[2] * nx[2]).max(0.0);
+    let cy = (-(r[0] * ny[0] + r[1] * ny[1] + r[2] * ny[2])).max(0.0);
+    let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+    cx * cy / (std::f64::consts::PI * r2 * r2)
+}
+
 /// The form factor from a point x with normal n to a convex polygon facing it, in closed form
 /// (Lambert 1760; Baum, Rushmeier and Winget 1989, eq. (3)): (1/2π) Σ γ_i n·(R_i × R_i+1)/|…|,
 /// R_i the vectors to the vertices and γ_i the angles between them. The polygon is first clipped
@@ -497,6 +507,17 @@ pub fn point_polygon(x: V3, n: V3, poly: &[V3; 4]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn kernel_is_one_sided_and_symmetric() {
+        let (up, down) = ([0.0, 0.0, 1.0], [0.0, 0.0, -1.0]);
+        let (x, y) = ([0.0; 3], [0.0, 0.0, 2.0]);
+        // two points facing each other at distance 2: 1 / (π · 4)
+        assert_eq!(kernel(x, up, y, down), 1.0 / (4.0 * std::f64::consts::PI));
+        assert_eq!(kernel(x, down, y, down), 0.0);
+        assert_eq!(kernel(x, up, y, up), 0.0);
+        assert_eq!(kernel(y, down, x, up), kernel(x, up, y, down));
+    }
     use std::f64::consts::PI;
 
     fn unit(corners: [V3; 4]) -> Parallelogram {

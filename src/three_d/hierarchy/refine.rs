@@ -24,18 +24,20 @@
 //! [`DIM_KNEE`]), an element is split (down to the
 //! finest level allowed: the source when D_S is most of the error, else the larger, except that
 //! a receiver coarser than [`receiver_first`] goes first) and its children are linked instead;
-//! otherwise the pair becomes a link whose k² × k² block is integrated by [`crate::transfer`]
+//! otherwise the pair becomes a link whose k² × k² block is integrated by [`crate::three_d::transfer`]
 //! and scaled by the visible fraction.
 
 use super::tree::{push, Element, NONE};
 use super::Hierarchy;
-use crate::congruence::Congruence;
-use crate::cover::Exposure;
 use crate::progress::{Cancelled, Progress};
-use crate::projection::three_d::VISIBILITY_GRID;
-use crate::space::{add, dot, norm, normalize, quad_quad, scale, sub};
-use crate::transfer::{self, Integrand};
-use crate::visibility3d::{pair_seed, visible_fraction_over, Piece, Seen, Steps, STEP};
+use crate::three_d::congruence::Congruence;
+use crate::three_d::cover::Exposure;
+use crate::three_d::geometry::Piece;
+use crate::three_d::geometry::{add, dot, norm, normalize, quad_quad, scale, sub};
+use crate::three_d::projection::VISIBILITY_GRID;
+use crate::three_d::steps::{Steps, STEP};
+use crate::three_d::transfer::{self, Integrand};
+use crate::three_d::visibility::{pair_seed, visible_fraction_over, Seen};
 use rayon::prelude::*;
 
 /// The share of the tolerance for a receiver along a line where another surface stands on its
@@ -208,7 +210,7 @@ impl Hierarchy<'_> {
                 push(self.filters, &parent.b, dt, ds, &mut b);
                 let mut e_coeffs = vec![[0.0; 3]; kk];
                 let quad = &self.quads[p.surface];
-                crate::projection::three_d::piece_emission(
+                crate::three_d::projection::piece_emission(
                     quad,
                     self.geo.quads[p.surface].area,
                     piece,
@@ -259,7 +261,7 @@ impl Hierarchy<'_> {
         let p = self.elements[e as usize].piece;
         self.contacts[p.surface]
             .iter()
-            .any(|line| crate::cover::meets(line, p.s, p.t))
+            .any(|line| crate::three_d::cover::meets(line, p.s, p.t))
     }
 
     /// The oracle's tolerance for receiver `r`: ε times the brightest emission, shrunk on a
@@ -503,7 +505,7 @@ impl Hierarchy<'_> {
     }
 
     /// Integrates the blocks of accepted pairs, in parallel: one per class of congruent pairs
-    /// ([`crate::congruence`]; a pair and its reverse are congruent, T_ba = T_abᵀ, since the
+    /// ([`crate::three_d::congruence`]; a pair and its reverse are congruent, T_ba = T_abᵀ, since the
     /// kernel is symmetric and the bases orthonormal), mapped to the others.
     pub(super) fn make_links(
         &self,

@@ -15,7 +15,7 @@
 //! matrix (Alpert's eq. (3.9) and the "two-scale relations").
 
 use super::legendre::{legendre, legendre_at_one};
-use crate::quadrature::Rule;
+use crate::math::quadrature::Rule;
 use nalgebra::DMatrix;
 use std::sync::{Mutex, OnceLock};
 

@@ -216,6 +216,27 @@ pub fn quad_quad(a: &[V3; 4], na: V3, b: &[V3; 4], nb: V3) -> f64 {
     d
 }
 
+/// A piece `[s0,s1] × [t0,t1]` of surface `surface`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Piece {
+    pub surface: usize,
+    pub s: [f64; 2],
+    pub t: [f64; 2],
+}
+
+impl Piece {
+    pub fn whole(surface: usize) -> Piece {
+        Piece {
+            surface,
+            s: [0.0, 1.0],
+            t: [0.0, 1.0],
+        }
+    }
+    pub fn corners(&self, quads: &[Parallelogram]) -> [V3; 4] {
+        quads[self.surface].piece(self.s, self.t)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

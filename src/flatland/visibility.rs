@@ -6,7 +6,7 @@
 //! what is left after removing those intervals, so the inner integral of eq. (4) over y can be
 //! taken exactly over the visible pieces instead of sampling the discontinuous V.
 
-use crate::geometry::{Line, V2};
+use crate::flatland::geometry::{Line, V2};
 
 /// Up to this many visible pieces are kept without allocating.
 pub type Pieces = smallvec::SmallVec<[[f64; 2]; 8]>;

@@ -5,16 +5,16 @@
 //! which integrates the 1/r singularity of touching segments (room corners) to full precision.
 //! Pairs that a third segment may occlude are integrated with exact visibility: the outer
 //! interval is split where the shadow topology changes, and the inner integral is taken over
-//! the visible pieces only ([`crate::visibility`]).
+//! the visible pieces only ([`crate::flatland::visibility`]).
 
-use super::{points_for_separation, Dense, Discretization, Layout, System};
-use crate::basis::legendre;
-use crate::geometry::{segment_distance, Line, V2};
-use crate::kernel;
+use crate::flatland::geometry::{segment_distance, Line, V2};
+use crate::flatland::kernel;
+use crate::flatland::visibility::{may_block, visible_from, Pieces};
+use crate::math::basis::legendre;
+use crate::math::quadrature::Rule;
+use crate::methods::projection::{points_for_separation, Dense, Discretization, Layout, System};
 use crate::progress::{Cancelled, Phase, Progress};
-use crate::quadrature::Rule;
 use crate::scene::Segment;
-use crate::visibility::{may_block, visible_from, Pieces};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 

@@ -21,18 +21,18 @@
 //! element. The first pass refines against the emission only; each
 //! following pass re-refines against the B just solved ("BF refinement") until no link changes.
 
-use crate::basis::{legendre, Filters};
-use crate::field::{Field, Leaf};
-use crate::geometry::Line;
-use crate::job::{JobError, Solution};
-use crate::kernel;
+use crate::flatland::geometry::Line;
+use crate::flatland::kernel;
+use crate::flatland::projection::{emission_on, intersect, CellPair, Geometry};
+use crate::flatland::visibility::{visible_from, Pieces};
+use crate::math::basis::{legendre, Filters};
+use crate::math::field::{Field, Leaf};
+use crate::math::quadrature::Rule;
+use crate::methods::solution::{JobError, Solution};
+use crate::methods::solve::{Settings, SolveError, Solved};
 use crate::progress::{Cancelled, Phase, Progress};
-use crate::projection::flatland::{emission_on, intersect, CellPair, Geometry};
-use crate::quadrature::Rule;
 use crate::result::HierarchyStats;
 use crate::scene::{Rgb, Segment};
-use crate::solve::{Settings, SolveError, Solved};
-use crate::visibility::{visible_from, Pieces};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -436,7 +436,7 @@ impl<'a> Hierarchy<'a> {
             }
             let scale = 1.0 / self.length(i).sqrt();
             let negative = (0..=n).any(|j| {
-                crate::basis::legendre::legendre(j as f64 / n as f64, &mut phi);
+                crate::math::basis::legendre::legendre(j as f64 / n as f64, &mut phi);
                 (0..3).any(|c| {
                     let v: f64 = e.b.iter().zip(&phi).map(|(b, p)| b[c] * p).sum();
                     v * scale < -self.negative_tolerance
@@ -619,7 +619,11 @@ impl<'a> Hierarchy<'a> {
     /// (receivers down, sources across), each link fills its block with the mean kernel value
     /// it carries, |T_00| / √(|r||s|), so the picture shows the interaction blocks of the
     /// hierarchy (coarse far away, fine near corners and shadows).
-    fn picture(&self, resolution: usize, max_side: usize) -> crate::compress::MagnitudePicture {
+    fn picture(
+        &self,
+        resolution: usize,
+        max_side: usize,
+    ) -> crate::methods::compress::MagnitudePicture {
         let cells = |e: &Element| {
             let at = |x: f64| e.surface * resolution + (x * resolution as f64).round() as usize;
             at(e.range[0])..at(e.range[1])
@@ -628,7 +632,7 @@ impl<'a> Hierarchy<'a> {
             let v = l.t[0].abs() / (self.length(l.r) * self.length(l.s)).sqrt();
             (cells(&self.elements[l.r]), cells(&self.elements[l.s]), v)
         });
-        crate::compress::block_picture(self.segments.len() * resolution, max_side, blocks)
+        crate::methods::compress::block_picture(self.segments.len() * resolution, max_side, blocks)
     }
 
     /// A field per surface from the leaves' coefficients chosen by `pick`.
@@ -722,7 +726,7 @@ pub fn solve(
         .filter(|v| *v > 0.0)
         .collect();
     mags.sort_by(|a, b| b.total_cmp(a));
-    let ranks = crate::compress::sample_ranks(mags.len(), coefficients);
+    let ranks = crate::methods::compress::sample_ranks(mags.len(), coefficients);
     let magnitudes = ranks.iter().map(|&r| (r, mags[r])).collect();
     let stats = HierarchyStats {
         elements: h.elements.len(),

@@ -7,10 +7,10 @@
 //! the children's B onto the parent's space), and a parent's polynomial restricted to a child
 //! is the transpose ("push", exact).
 
-use crate::basis::Filters;
-use crate::cover::Exposure;
+use crate::math::basis::Filters;
 use crate::scene::Rgb;
-use crate::visibility3d::Piece;
+use crate::three_d::cover::Exposure;
+use crate::three_d::geometry::Piece;
 
 pub const NONE: u32 = u32::MAX;
 
@@ -34,7 +34,7 @@ pub struct Element {
     /// (largest channel), from the leaves below: what a link that uses this element as a
     /// source leaves out.
     pub detail: f64,
-    /// How much of it a solid standing on the surface leaves exposed ([`crate::cover`]).
+    /// How much of it a solid standing on the surface leaves exposed ([`crate::three_d::cover`]).
     /// On a partly covered element, `b` and `h` are the polynomials of the exposed part
     /// (see [`Element::reported`]).
     pub exposure: Exposure,
@@ -58,7 +58,7 @@ impl Element {
                     .map(|(v, e)| [v[0] - e[0], v[1] - e[1], v[2] - e[2]])
                     .collect();
                 let mut out = vec![[0.0; 3]; v.len()];
-                crate::cover::Partial::apply(&p.gram, &d, &mut out);
+                crate::three_d::cover::Partial::apply(&p.gram, &d, &mut out);
                 out.iter_mut().zip(e).for_each(|(o, e)| {
                     (0..3).for_each(|c| o[c] += e[c]);
                 });
@@ -124,7 +124,7 @@ pub fn pull(filters: &Filters, child: &[Rgb], dt: usize, ds: usize, parent: &mut
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::basis::legendre;
+    use crate::math::basis::legendre;
 
     /// A polynomial of degree m on the parent, pushed to a child, evaluates to the same values;
     /// pulling the four children back gives the parent again (m = 0 … 3).

@@ -5,7 +5,7 @@
 //!
 //! One polynomial on an element that straddles the foot's outline fits both sides at once:
 //! it darkens the floor next to the box, and with it the box's faces, which see mostly that
-//! strip of floor. The hierarchy ([`crate::hierarchy::three_d`]) instead fits each such
+//! strip of floor. The hierarchy ([`crate::three_d::hierarchy`]) instead fits each such
 //! element on its exposed part only, as in a cut-cell (fictitious domain) Galerkin method:
 //! with χ the exposed part's indicator, the element's masked Gram matrix
 //! G_ac = ∫ χ φ_a φ_c (here, over the element's unit square) turns the irradiance that
@@ -22,10 +22,10 @@
 //! level is probed at its corners and centre; the cells where the outline passes, and their
 //! neighbours, are resolved on a [`SUB`] × [`SUB`] grid.
 
-use crate::basis::legendre::interval_gram;
-use crate::bvh::Bvh;
-use crate::space::{add, cross, dot, normalize, scale, Parallelogram, V3};
-use crate::visibility3d::STEP;
+use crate::math::basis::legendre::interval_gram;
+use crate::three_d::bvh::Bvh;
+use crate::three_d::geometry::{add, cross, dot, normalize, scale, Parallelogram, V3};
+use crate::three_d::steps::STEP;
 use rayon::prelude::*;
 
 /// Sub-cells per side of a finest cell that the outline of a covered part crosses.
@@ -70,7 +70,7 @@ pub struct Partial {
     pub inverse: Vec<f64>,
     /// ∫_cell χ φ_a φ_c for the [`STEP`] × [`STEP`] cells of the element (index `i + STEP j`
     /// by their s and t positions): G split by those cells, for a visible fraction that is
-    /// a step over them ([`crate::visibility3d::Seen`]).
+    /// a step over them ([`crate::three_d::visibility::Seen`]).
     pub steps: Vec<Vec<f64>>,
 }
 
@@ -476,7 +476,7 @@ mod tests {
         // the foot [2, 5] × [3, 4.5] (x × z) of an [0, 8]² floor
         let quads = floor_with_box([2.0, 3.0], [5.0, 4.5]);
         for q in &quads[1..] {
-            let out = crate::space::sub(q.at(0.5, 0.5), [3.5, 0.5, 3.75]);
+            let out = crate::three_d::geometry::sub(q.at(0.5, 0.5), [3.5, 0.5, 3.75]);
             assert!(dot(q.n, out) > 0.0, "the box's faces point out");
         }
         let bvh = Bvh::occluders(&quads);
@@ -602,7 +602,7 @@ mod tests {
             assert!((p.fraction() - 0.5).abs() < 1e-14);
             // the step cells: nothing on the covered half, the plain Gram matrices of the
             // cells on the exposed one
-            let plain = crate::visibility3d::Steps::new(k);
+            let plain = crate::three_d::steps::Steps::new(k);
             for (c, (masked, plain)) in p.steps.iter().zip(&plain.m).enumerate() {
                 let exposed = c % STEP >= STEP / 2;
                 for (g, w) in masked.iter().zip(plain) {

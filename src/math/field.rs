@@ -4,8 +4,8 @@
 //! quadtrees of the hierarchical method are both such fields. Evaluating one is the sum
 //! B_p(x) = Σ_i b_i N_i(x) of the slides' eq. (7).
 
-use crate::basis::legendre;
-use crate::quadrature::Rule;
+use crate::math::basis::legendre;
+use crate::math::quadrature::Rule;
 
 /// One leaf: B(s,t) = Σ c[q][p] φ_p(ŝ) φ_q(t̂) with ŝ, t̂ the local coordinates in the leaf.
 #[derive(Debug, Clone, PartialEq)]

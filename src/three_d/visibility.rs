@@ -14,30 +14,11 @@
 //!   receiver ([`Seen`]); a Galerkin block is weighted by it on the receiver's side, so a
 //!   shadow edge through a receiver shows in its polynomial.
 
-use crate::bvh::Bvh;
-use crate::cover::{Mask, Partial};
-use crate::space::{cross, dot, norm, sub, Parallelogram, V3};
-
-/// A piece `[s0,s1] × [t0,t1]` of surface `surface`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Piece {
-    pub surface: usize,
-    pub s: [f64; 2],
-    pub t: [f64; 2],
-}
-
-impl Piece {
-    pub fn whole(surface: usize) -> Piece {
-        Piece {
-            surface,
-            s: [0.0, 1.0],
-            t: [0.0, 1.0],
-        }
-    }
-    pub fn corners(&self, quads: &[Parallelogram]) -> [V3; 4] {
-        quads[self.surface].piece(self.s, self.t)
-    }
-}
+use crate::three_d::bvh::Bvh;
+use crate::three_d::cover::{Mask, Partial};
+use crate::three_d::geometry::Piece;
+use crate::three_d::geometry::{cross, dot, norm, sub, Parallelogram, V3};
+use crate::three_d::steps::{Steps, CELLS, STEP};
 
 /// Whether the parallelogram `q` may meet the convex hull of `points` (conservative). With
 /// `thorough`, every candidate axis of the hull is tried (its edges and faces through any of
@@ -194,10 +175,6 @@ pub fn pair_seed(a: u64, b: u64) -> u64 {
     r.next_u64()
 }
 
-/// Cells per side of the receiver over which a link's visible fraction is a step.
-pub const STEP: usize = 4;
-const CELLS: usize = STEP * STEP;
-
 /// The quarter (`ds + 2 dt`) of the receiver that step cell `c` (`i + STEP j`) lies in.
 fn quarter_of(c: usize) -> usize {
     let (i, j) = (c % STEP, c / STEP);
@@ -285,42 +262,6 @@ fn left_multiply(w: &[f64], kk: usize, block: &mut [f64]) {
     }
 }
 
-/// M_cell[a][c] = ∫_cell φ_a φ_c over the unit square, for the tensor products
-/// φ_a = φ_p(ŝ) φ_q(t̂) (`a = q k + p`) of the orthonormal shifted Legendre polynomials of
-/// [`crate::basis::legendre`]: the Gram matrices of the basis on the [`STEP`] × [`STEP`]
-/// cells (they sum to the identity).
-#[derive(Debug, Clone)]
-pub struct Steps {
-    pub k: usize,
-    pub m: Vec<Vec<f64>>,
-}
-
-impl Steps {
-    pub fn new(k: usize) -> Steps {
-        // ∫ φ_p φ_q over each [i / STEP, (i + 1) / STEP]
-        let strips: Vec<Vec<f64>> = (0..STEP)
-            .map(|i| {
-                let u = [i as f64 / STEP as f64, (i + 1) as f64 / STEP as f64];
-                crate::basis::legendre::interval_gram(u, k)
-            })
-            .collect();
-        let kk = k * k;
-        let m = (0..CELLS)
-            .map(|c| {
-                let (hs, ht) = (&strips[c % STEP], &strips[c / STEP]);
-                let mut m = vec![0.0; kk * kk];
-                for a in 0..kk {
-                    for d in 0..kk {
-                        m[a * kk + d] = ht[(a / k) * k + d / k] * hs[(a % k) * k + d % k];
-                    }
-                }
-                m
-            })
-            .collect();
-        Steps { k, m }
-    }
-}
-
 /// The visible fraction of quarter `q` (index `ds + 2 dt`), which no ray sampled, from the
 /// others: the plane through three of them, across from one or two in a row, the mean of a
 /// diagonal pair, `whole` when there are none.
@@ -357,7 +298,7 @@ pub fn visible_fraction(
 }
 
 /// [`visible_fraction`] over the pairs whose point on `a` is not `covered`: the fraction of
-/// the light that reaches the exposed part of `a` ([`crate::cover`]).
+/// the light that reaches the exposed part of `a` ([`crate::three_d::cover`]).
 pub fn visible_fraction_over(
     bvh: &Bvh,
     a: Piece,
@@ -550,7 +491,7 @@ mod tests {
             let crate::scene::SceneKind::ThreeD(quads) = &job.scene.kind else {
                 unreachable!()
             };
-            let geo = crate::projection::three_d::Geometry::new(quads);
+            let geo = crate::three_d::projection::Geometry::new(quads);
             let mut rays = 0;
             let v = geo.visibility(Piece::whole(0), Piece::whole(1), 1, 8, &mut rays);
             assert_eq!(rays > 0, cast, "x = {x}: {rays} rays");

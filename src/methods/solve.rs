@@ -9,74 +9,10 @@
 //! Both stop when the relative change ‖B⁺ − B‖ / ‖B⁺‖ falls below `tolerance` or after
 //! `max_iterations` sweeps, and fail on NaN or growth instead of returning garbage.
 
-use crate::compress::Csr;
+use crate::methods::operator::Operator;
 use crate::progress::{Cancelled, Phase, Progress};
-use crate::projection::Dense;
 use crate::scene::{Iteration, Rgb};
 use rayon::prelude::*;
-
-/// A square matrix the iterations can sweep: sparse after thresholding, or dense when most
-/// entries are kept (a dense sweep needs no second copy of the matrix).
-pub trait Operator: Sync {
-    fn size(&self) -> usize;
-    fn diagonal(&self, i: usize) -> f64;
-    /// Σ_{j ≠ i} K_ij b_j for three channels.
-    fn off_diagonal_dot(&self, i: usize, b: &[Rgb]) -> Rgb;
-    /// Σ_j K_ij b_j.
-    fn dot(&self, i: usize, b: &[Rgb]) -> Rgb {
-        let d = self.diagonal(i);
-        let mut acc = self.off_diagonal_dot(i, b);
-        for c in 0..3 {
-            acc[c] += d * b[i][c];
-        }
-        acc
-    }
-}
-
-impl Operator for Csr {
-    fn size(&self) -> usize {
-        self.n
-    }
-    fn diagonal(&self, i: usize) -> f64 {
-        Csr::diagonal(self, i)
-    }
-    #[inline]
-    fn off_diagonal_dot(&self, i: usize, b: &[Rgb]) -> Rgb {
-        let (cols, vals) = self.row(i);
-        let mut acc = [0.0; 3];
-        for (&j, &v) in cols.iter().zip(vals) {
-            let j = j as usize;
-            if j != i {
-                let bj = b[j];
-                acc[0] += v * bj[0];
-                acc[1] += v * bj[1];
-                acc[2] += v * bj[2];
-            }
-        }
-        acc
-    }
-}
-
-impl Operator for Dense {
-    fn size(&self) -> usize {
-        self.n
-    }
-    fn diagonal(&self, i: usize) -> f64 {
-        self.get(i, i)
-    }
-    #[inline]
-    fn off_diagonal_dot(&self, i: usize, b: &[Rgb]) -> Rgb {
-        let mut acc = [0.0; 3];
-        for (j, (&v, bj)) in self.row(i).iter().zip(b).enumerate() {
-            if j != i {
-                acc[0] += v * bj[0];
-                acc[1] += v * bj[1];
-                acc[2] += v * bj[2];
-            }
-        }
-        acc
-    }
-}
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Settings {
@@ -278,6 +214,7 @@ fn growing(history: &[f64]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::methods::compress::Csr;
     use crate::progress::Silent;
 
     fn csr(dense: &[&[f64]]) -> Csr {

@@ -5,12 +5,8 @@
 //! The matrix is kept without ρ: ρ is constant on each surface, so B = E + diag(ρ) K B shares
 //! one K between the three channels, and diag(ρ) commutes with the per-surface wavelet transform.
 
-pub mod flatland;
-pub mod fredholm;
-pub mod three_d;
-
-use crate::progress::{Cancelled, Progress};
-use crate::scene::{Job, Rgb, SceneKind};
+use crate::methods::operator::Operator;
+use crate::scene::Rgb;
 
 /// A dense row-major square matrix.
 #[derive(Debug, Clone, PartialEq)]
@@ -117,19 +113,6 @@ pub struct Discretization {
     pub quadrature: usize,
 }
 
-/// Builds the system of a 1D or flatland job.
-pub fn build(
-    job: &Job,
-    disc: Discretization,
-    progress: &dyn Progress,
-) -> Result<System, Cancelled> {
-    match &job.scene.kind {
-        SceneKind::Flatland(segments) => flatland::build(segments, disc, progress),
-        SceneKind::Fredholm(f) => fredholm::build(f, disc, progress),
-        SceneKind::ThreeD(_) => unreachable!("3d scenes are assembled by the 3d module"),
-    }
-}
-
 /// Gauss points needed on a pair of cells at distance `dist` apart, of size `size`, for the
 /// quadrature error of a kernel analytic off the diagonal to be about 1e-13: the error of a
 /// q-point rule decays like ρ^(−2q), ρ the Bernstein ellipse through the nearest singularity.
@@ -142,6 +125,27 @@ pub fn points_for_separation(dist: f64, size: f64) -> usize {
         24
     } else {
         q.clamp(1.0, 24.0) as usize
+    }
+}
+
+impl Operator for Dense {
+    fn size(&self) -> usize {
+        self.n
+    }
+    fn diagonal(&self, i: usize) -> f64 {
+        self.get(i, i)
+    }
+    #[inline]
+    fn off_diagonal_dot(&self, i: usize, b: &[Rgb]) -> Rgb {
+        let mut acc = [0.0; 3];
+        for (j, (&v, bj)) in self.row(i).iter().zip(b).enumerate() {
+            if j != i {
+                acc[0] += v * bj[0];
+                acc[1] += v * bj[1];
+                acc[2] += v * bj[2];
+            }
+        }
+        acc
     }
 }
 

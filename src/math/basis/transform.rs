@@ -248,8 +248,8 @@ pub fn level_of(i: usize, k: usize) -> i32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::basis::legendre;
-    use crate::quadrature::Rule;
+    use crate::math::basis::legendre;
+    use crate::math::quadrature::Rule;
 
     fn pseudo_random(len: usize, seed: u64) -> Vec<f64> {
         let mut s = seed;

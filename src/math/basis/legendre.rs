@@ -35,7 +35,7 @@ pub fn legendre_at_one(p: usize) -> f64 {
 /// ∫_u φ_p φ_q over an interval u of [0, 1], exactly (Gauss with k points), `[p][q]` for
 /// p, q < k: the Gram matrix of the first k polynomials on a part of their interval.
 pub fn interval_gram(u: [f64; 2], k: usize) -> Vec<f64> {
-    let rule = crate::quadrature::Rule::for_degree(2 * (k - 1));
+    let rule = crate::math::quadrature::Rule::for_degree(2 * (k - 1));
     let mut phi = vec![0.0; k];
     let mut m = vec![0.0; k * k];
     for (x, w) in rule.mapped(u[0], u[1]) {
@@ -52,7 +52,7 @@ pub fn interval_gram(u: [f64; 2], k: usize) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::quadrature::Rule;
+    use crate::math::quadrature::Rule;
 
     #[test]
     fn orthonormal_up_to_degree_20() {

@@ -1,14 +1,15 @@
 //! The kernel matrix in the wavelet basis and its thresholding.
 //!
-//! With W the orthogonal per-surface wavelet transform of [`crate::basis::transform`], the
+//! With W the orthogonal per-surface wavelet transform of [`crate::math::basis::transform`], the
 //! system B = E + ρKB becomes (WB) = (WE) + ρ (W K Wᵀ)(WB): the "standard form" of Beylkin,
 //! Coifman and Rokhlin, in which the vanishing moments make most entries negligible (Alpert
 //! 1993, §4). [`threshold`] keeps the entries that `keep` asks for, as a sparse matrix.
 
-use crate::basis::{transform, Filters};
+use crate::math::basis::{transform, Filters};
+use crate::methods::operator::Operator;
+use crate::methods::projection::{Dense, Layout, System};
 use crate::progress::{Cancelled, Phase, Progress};
-use crate::projection::{Dense, Layout, System};
-use crate::scene::Keep;
+use crate::scene::{Keep, Rgb};
 use rayon::prelude::*;
 
 /// Transforms one vector of a surface in place (scaling → wavelet).
@@ -126,7 +127,7 @@ pub enum KeptMatrix {
 }
 
 impl KeptMatrix {
-    pub fn operator(&self) -> &dyn crate::solve::Operator {
+    pub fn operator(&self) -> &dyn Operator {
         match self {
             KeptMatrix::Sparse(c) => c,
             KeptMatrix::Dense(d) => d,
@@ -550,6 +551,30 @@ pub fn picture_sparse(m: &Csr, max_side: usize, cut: f64) -> MagnitudePicture {
         block,
         cut,
         links: false,
+    }
+}
+
+impl Operator for Csr {
+    fn size(&self) -> usize {
+        self.n
+    }
+    fn diagonal(&self, i: usize) -> f64 {
+        Csr::diagonal(self, i)
+    }
+    #[inline]
+    fn off_diagonal_dot(&self, i: usize, b: &[Rgb]) -> Rgb {
+        let (cols, vals) = self.row(i);
+        let mut acc = [0.0; 3];
+        for (&j, &v) in cols.iter().zip(vals) {
+            let j = j as usize;
+            if j != i {
+                let bj = b[j];
+                acc[0] += v * bj[0];
+                acc[1] += v * bj[1];
+                acc[2] += v * bj[2];
+            }
+        }
+        acc
     }
 }
 

@@ -16,7 +16,7 @@
 //! processor has them (`pulp` checks at run time), two SSE2 halves (`wide`) elsewhere.
 //! Measured in `benches/three_d.rs` (rays per second, `benches/README.md`).
 
-use crate::space::{sub, Parallelogram, V3};
+use crate::three_d::geometry::{sub, Parallelogram, V3};
 use smallvec::SmallVec;
 
 /// Children per node and surfaces per leaf.

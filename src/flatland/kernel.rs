@@ -1,12 +1,10 @@
-//! The kernels of the radiosity equation.
-//!
-//! - flatland, the slides' eq. (4): K(x, y) = cosθx cosθy / (2 r) · V(x, y);
-//! - 3D, the slides' eq. (3): K(x, y) = cosθx cosθy / (π r²) · V(x, y);
-//!
-//! both zero unless y is in front of x and x in front of y. The visibility factor V is not part
-//! of these functions: [`crate::visibility`] clips the integration domain to the visible parts.
+//! The flatland kernel of the slides' eq. (4): K(x, y) = cosθx cosθy / (2 r) · V(x, y), zero
+//! unless y is in front of x and x in front of y, and Hottel's crossed strings, its closed-form
+//! integral between two unoccluded segments. The visibility factor V is not part of these
+//! functions: [`crate::flatland::visibility`] clips the integration domain to the visible
+//! parts. (The 3D kernel, eq. (3), is [`crate::three_d::transfer::kernel`].)
 
-use crate::geometry::V2;
+use crate::flatland::geometry::V2;
 
 /// Eq. (4) without V: cosθx cosθy / (2r) for points x, y with unit front normals nx, ny.
 #[inline(always)]
@@ -29,19 +27,6 @@ pub fn flatland_facing(x: V2, nx: V2, y: V2, ny: V2) -> f64 {
     let r = y - x;
     let r2 = r.dot(r);
     r.dot(nx) * -r.dot(ny) / (2.0 * r2 * r2.sqrt())
-}
-
-/// Eq. (3) without V: cosθx cosθy / (π r²), with x, y and unit normals as `[f64; 3]`.
-#[inline(always)]
-pub fn three_d(x: [f64; 3], nx: [f64; 3], y: [f64; 3], ny: [f64; 3]) -> f64 {
-    let r = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
-    let cx = r[0] * nx[0] + r[1] * nx[1] + r[2] * nx[2];
-    let cy = -(r[0] * ny[0] + r[1] * ny[1] + r[2] * ny[2]);
-    if cx <= 0.0 || cy <= 0.0 {
-        return 0.0;
-    }
-    let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-    cx * cy / (std::f64::consts::PI * r2 * r2)
 }
 
 /// Hottel's crossed-strings rule: the flatland form factor from segment [a1,b1] to [a2,b2]
@@ -68,8 +53,6 @@ mod tests {
         assert_eq!(flatland(x, down, y, down), 0.0);
         assert_eq!(flatland(x, up, y, up), 0.0);
         assert_eq!(flatland(y, down, x, up), flatland(x, up, y, down));
-        let k3 = three_d([0.0; 3], [0.0, 0.0, 1.0], [0.0, 0.0, 2.0], [0.0, 0.0, -1.0]);
-        assert!((k3 - 1.0 / (4.0 * std::f64::consts::PI)).abs() < 1e-16);
     }
 
     #[test]

@@ -1,0 +1,67 @@
+//! What every method answers: the [`Solution`] (B over each surface as piecewise polynomials,
+//! the operator's statistics, the iterations) from which [`crate::job`] assembles the result,
+//! and the [`JobError`] kinds by which a solve fails.
+
+use crate::math::field::Field;
+use crate::methods::compress::MagnitudePicture;
+use crate::methods::solve::{SolveError, Solved};
+use crate::progress::Cancelled;
+use crate::result::HierarchyStats;
+use std::collections::BTreeMap;
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum JobError {
+    #[error("cancelled")]
+    Cancelled,
+    #[error("{0}")]
+    Diverged(String),
+    #[error("{0}")]
+    Unsupported(String),
+    /// The problem outgrew the memory the solver allows itself.
+    #[error("{0}")]
+    TooLarge(String),
+}
+
+impl From<Cancelled> for JobError {
+    fn from(_: Cancelled) -> Self {
+        JobError::Cancelled
+    }
+}
+
+impl From<SolveError> for JobError {
+    fn from(e: SolveError) -> Self {
+        match e {
+            SolveError::Cancelled => JobError::Cancelled,
+            e => JobError::Diverged(e.to_string()),
+        }
+    }
+}
+
+/// What a method produces; the result is assembled from it.
+#[derive(Debug, Clone)]
+pub struct Solution {
+    pub fields: Vec<Field>,
+    /// B as the images show it, where that differs from `fields`: on an element that a
+    /// solid partly covers, the polynomial of its exposed part up to the outline
+    /// ([`crate::three_d::cover`]), where `fields` holds the element's projection.
+    pub shown: Option<Vec<Field>>,
+    pub emission: Vec<Field>,
+    pub irradiance: Vec<Field>,
+    pub basis_size: usize,
+    pub matrix_entries: usize,
+    pub kept_entries: usize,
+    pub cut: f64,
+    /// Sampled sorted magnitudes of the matrix: (rank, magnitude), decreasing.
+    pub magnitudes: Vec<(usize, f64)>,
+    pub picture: Option<MagnitudePicture>,
+    pub solved: Solved,
+    /// Eq. (5) and the surface pairs it left out.
+    pub kernel_error: Option<f64>,
+    pub left_out: Vec<(usize, usize)>,
+    pub hierarchy: Option<HierarchyStats>,
+    pub timings: BTreeMap<String, f64>,
+    /// Σ K_ij² of the kept entries per (row surface, column surface), `S × S`, for eq. (5).
+    pub kept_squares: Vec<f64>,
+    /// Kernel evaluations the matrix (or the links) took, where they are counted.
+    pub kernel_evaluations: Option<u64>,
+}
