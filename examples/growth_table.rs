@@ -23,7 +23,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let reference = job::solve_job(
         &with(json!({ "order": 1, "resolution": 32 }))?,
         1,
-        32,
+        Some(32),
         Keep::All,
         &Silent,
     )?;
@@ -70,7 +70,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (method, solver, setting) in rows {
         let j = with(solver)?;
         let t = std::time::Instant::now();
-        let sol = job::solve_job(&j, j.solver.order, j.solver.resolution, Keep::All, &Silent)?;
+        let sol = job::solve_job(
+            &j,
+            j.solver.order,
+            Some(j.solver.resolution),
+            Keep::All,
+            &Silent,
+        )?;
         let ms = t.elapsed().as_secs_f64() * 1e3;
         let (mut d, mut n) = (0.0, 0.0);
         for (i, f) in sol.fields.iter().enumerate() {

@@ -32,13 +32,8 @@ pub struct Outcome {
 /// Runs a job.
 pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
     let start = Instant::now();
-    let mut sol = solve_job(
-        job,
-        job.solver.order,
-        job.solver.resolution,
-        job.solver.keep,
-        progress,
-    )?;
+    let given = job.solver.resolution_given.then_some(job.solver.resolution);
+    let mut sol = solve_job(job, job.solver.order, given, job.solver.keep, progress)?;
     let names = job.surface_names();
     let measure = surface_measures(job);
     let t = Instant::now();
@@ -60,7 +55,7 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
                 inner: progress,
                 phase: Phase::Reference,
             };
-            let reference = solve_job(job, order, resolution, Keep::All, &quiet)?;
+            let reference = solve_job(job, order, Some(resolution), Keep::All, &quiet)?;
             let (mut d, mut n) = (0.0, 0.0);
             for (i, f) in sol.fields.iter().enumerate() {
                 let (di, ni) = metrics::l2_difference(f, &reference.fields[i], measure[i]);
@@ -142,14 +137,17 @@ pub fn system(
     }
 }
 
-/// Solves the job's scene at the given order, resolution and keep rule.
+/// Solves the job's scene at the given order, resolution and keep rule. A resolution of `None`
+/// (not in the document) is the default's for the projection method and no cap for the
+/// hierarchical method in 3D, whose elements `min_element_size` sizes.
 pub fn solve_job(
     job: &Job,
     order: usize,
-    resolution: usize,
+    given: Option<usize>,
     keep: Keep,
     progress: &dyn Progress,
 ) -> Result<Solution, JobError> {
+    let resolution = given.unwrap_or(job.solver.resolution);
     // a reference solve at a higher order needs at least its own default rule
     let quadrature = if order == job.solver.order {
         job.solver.quadrature
@@ -186,7 +184,7 @@ pub fn solve_job(
             progress,
         )?,
         (SceneKind::ThreeD(_), Method::Hierarchical) => {
-            crate::three_d::hierarchy::solve(job, order, resolution, progress)?
+            crate::three_d::hierarchy::solve(job, order, given, progress)?
         }
         (_, Method::Projection) => {
             let t = Instant::now();

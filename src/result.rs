@@ -102,4 +102,8 @@ pub struct HierarchyStats {
     pub levels: usize,
     pub refinements: usize,
     pub rays: u64,
+    /// 3d: the smallest element edge the refinement could go down to, in scene units: the
+    /// document's `min_element_size` or its default from the scene's size.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_element_size: Option<f64>,
 }

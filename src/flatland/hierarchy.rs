@@ -735,6 +735,7 @@ pub fn solve(
         levels,
         refinements: h.refinements,
         rays: 0,
+        min_element_size: None,
     };
     let picture = h.picture(resolution, 512);
     // Σ‖T‖² per pair of surfaces: each link is the orthogonal projection of K on its block

@@ -183,6 +183,9 @@ pub struct Solver {
     pub basis: BasisKind,
     pub order: usize,
     pub resolution: usize,
+    /// Whether the document gave `resolution`: for the hierarchical method in 3D it is then a
+    /// cap on top of [`Solver::min_element_size`], else the elements are sized by that alone.
+    pub resolution_given: bool,
     pub keep: Keep,
     pub iteration: Iteration,
     pub tolerance: f64,
@@ -190,6 +193,9 @@ pub struct Solver {
     /// Gauss–Legendre points per cell and dimension.
     pub quadrature: usize,
     pub epsilon: f64,
+    /// The hierarchical method's smallest element edge in scene units; `None`: chosen from the
+    /// scene's size ([`crate::three_d::hierarchy::Sizing`]).
+    pub min_element_size: Option<f64>,
 }
 
 impl Default for Solver {
@@ -199,12 +205,14 @@ impl Default for Solver {
             basis: BasisKind::Wavelet,
             order: 1,
             resolution: 8,
+            resolution_given: false,
             keep: Keep::All,
             iteration: Iteration::Jacobi,
             tolerance: 1e-6,
             max_iterations: 500,
             quadrature: 3,
             epsilon: 1e-3,
+            min_element_size: None,
         }
     }
 }

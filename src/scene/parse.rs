@@ -525,6 +525,7 @@ fn solver(
             "max_iterations",
             "quadrature",
             "epsilon",
+            "min_element_size",
         ],
     )?;
     let d = Solver::default();
@@ -624,18 +625,43 @@ fn solver(
     };
     let tolerance = positive("tolerance", d.tolerance, &mut ok);
     let epsilon = positive("epsilon", d.epsilon, &mut ok);
+    let min_element_size = match get("min_element_size") {
+        Some((v, p)) => {
+            let size = w.number_in(
+                v,
+                &p,
+                |x| x > 0.0 && x.is_finite(),
+                "must be a positive length",
+            );
+            ok &= size.is_some();
+            if size.is_some()
+                && (kind.is_some_and(|k| k != "3d") || (known && method != Method::Hierarchical))
+            {
+                w.error(
+                    &p,
+                    "min_element_size sizes the elements of the hierarchical method in 3d scenes; \
+                     flatland and the projection method are sized by resolution",
+                );
+                ok = false;
+            }
+            size
+        }
+        None => None,
+    };
     Some(Parsed {
         value: Solver {
             method,
             basis,
             order,
             resolution,
+            resolution_given: get("resolution").is_some(),
             keep,
             iteration,
             tolerance,
             max_iterations,
             quadrature,
             epsilon,
+            min_element_size,
         },
         ok,
     })
@@ -1158,6 +1184,35 @@ mod tests {
                 "/output/camera/look_at"
             ]
         );
+    }
+
+    #[test]
+    fn min_element_size_is_a_positive_length_for_the_3d_hierarchy() {
+        let doc = |solver: Value| {
+            json!({"scene": {"kind": "3d", "surfaces": [
+                {"name": "a", "corners": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]], "reflectance": 0.5,
+                 "emission": 1}]}, "solver": solver})
+        };
+        let ok = json!({"method": "hierarchical", "min_element_size": 0.25});
+        let job = parse_value(&doc(ok), &Limits::default()).unwrap();
+        assert_eq!(job.solver.min_element_size, Some(0.25));
+        assert!(!job.solver.resolution_given);
+        let capped = json!({"method": "hierarchical", "min_element_size": 0.25, "resolution": 4});
+        assert!(
+            parse_value(&doc(capped), &Limits::default())
+                .unwrap()
+                .solver
+                .resolution_given
+        );
+        for bad in [json!(0), json!(-1), json!("1")] {
+            let solver = json!({"method": "hierarchical", "min_element_size": bad});
+            assert_eq!(errors(doc(solver)), ["/solver/min_element_size"]);
+        }
+        // the projection method and flatland are sized by resolution
+        let projection = json!({"method": "projection", "min_element_size": 0.25});
+        assert_eq!(errors(doc(projection)), ["/solver/min_element_size"]);
+        let solver = json!({"solver": {"method": "hierarchical", "min_element_size": 0.25}});
+        assert_eq!(errors(flat(solver)), ["/solver/min_element_size"]);
     }
 
     #[test]

@@ -97,11 +97,15 @@ impl Mask {
     /// The masks of every surface of the scene that something stands on or lies flat against
     /// (`None` for the rest, and where nothing turned out covered), at `res` finest cells per
     /// side.
-    pub fn of_scene(quads: &[Parallelogram], bvh: &Bvh, res: usize) -> Vec<Option<Mask>> {
+    pub fn of_scene(
+        quads: &[Parallelogram],
+        bvh: &Bvh,
+        res: impl Fn(usize) -> usize,
+    ) -> Vec<Option<Mask>> {
         (0..quads.len())
             .map(|i| {
                 (!contacts(quads, i).is_empty() || lidded(quads, i))
-                    .then(|| Mask::probe(quads, bvh, i, res))
+                    .then(|| Mask::probe(quads, bvh, i, res(i)))
                     .filter(|m| m.cells.iter().any(|c| *c != Cell::Open))
             })
             .collect()
@@ -480,7 +484,7 @@ mod tests {
             assert!(dot(q.n, out) > 0.0, "the box's faces point out");
         }
         let bvh = Bvh::occluders(&quads);
-        let masks = Mask::of_scene(&quads, &bvh, 8);
+        let masks = Mask::of_scene(&quads, &bvh, |_| 8);
         assert!(masks[1..].iter().all(Option::is_none));
         let m = masks[0].as_ref().expect("the floor is stood on");
         assert!(m.covered(3.5 / 8.0, 3.0 / 8.0));
@@ -562,7 +566,9 @@ mod tests {
         assert!(quads[0].n[1] < 0.0 && quads[1].n[1] < 0.0, "both face down");
         assert!(lidded(&quads, 0) && !lidded(&quads, 1));
         let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(&quads, &bvh, 8).remove(0).expect("covered");
+        let m = Mask::of_scene(&quads, &bvh, |_| 8)
+            .remove(0)
+            .expect("covered");
         // the ceiling's s runs along x and t along z: the panel is [0.375, 0.625]²
         assert!(m.covered(0.5, 0.5) && m.covered(0.4, 0.6));
         assert!(!m.covered(0.3, 0.5) && !m.covered(0.5, 0.7) && !m.covered(0.1, 0.1));
@@ -584,7 +590,7 @@ mod tests {
         // the foot's edge z = 4.5 halves the finest cell z ∈ [4, 5], x ∈ [3, 4]
         let quads = floor_with_box([2.0, 3.0], [5.0, 4.5]);
         let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(&quads, &bvh, 8).remove(0).expect("mask");
+        let m = Mask::of_scene(&quads, &bvh, |_| 8).remove(0).expect("mask");
         for k in 1..=4 {
             let Exposure::Partial(p) = m.exposure([0.5, 0.625], [0.375, 0.5], k) else {
                 panic!("cut")

@@ -20,6 +20,7 @@
 //! count the covered part as B = E.
 
 pub mod refine;
+pub mod sizing;
 pub mod tree;
 
 use crate::math::basis::Filters;
@@ -35,6 +36,7 @@ use crate::three_d::projection::{piece_emission, Geometry};
 use crate::three_d::transfer::Accuracy;
 use rayon::prelude::*;
 use refine::{Factors, Link};
+use sizing::Sizing;
 use std::collections::BTreeMap;
 use std::time::Instant;
 use tree::{pull, push, Element, NONE};
@@ -51,7 +53,9 @@ pub struct Hierarchy<'g> {
     pub quads: &'g [Quad],
     pub filters: &'static Filters,
     pub k: usize,
-    pub max_level: u32,
+    /// The finest level of each surface's quadtree, by [`sizing`].
+    pub levels: Vec<u32>,
+    pub sizing: Sizing,
     /// Receivers above this level are split before their sources ([`refine::receiver_first`]).
     pub receiver_first: u32,
     pub threshold: f64,
@@ -92,7 +96,7 @@ impl<'g> Hierarchy<'g> {
         geo: &'g Geometry,
         quads: &'g [Quad],
         order: usize,
-        resolution: usize,
+        sizing: Sizing,
         epsilon: f64,
     ) -> Hierarchy<'g> {
         let k = order + 1;
@@ -100,7 +104,8 @@ impl<'g> Hierarchy<'g> {
             .iter()
             .flat_map(|q| q.material.emission)
             .fold(0.0, f64::max);
-        let masks = Mask::of_scene(&geo.quads, &geo.bvh, resolution);
+        let levels: Vec<u32> = geo.quads.iter().map(|q| sizing.finest_level(q)).collect();
+        let masks = Mask::of_scene(&geo.quads, &geo.bvh, |i| 1 << levels[i]);
         let elements = quads
             .iter()
             .enumerate()
@@ -132,8 +137,9 @@ impl<'g> Hierarchy<'g> {
             quads,
             filters: Filters::of_order(order),
             k,
-            max_level: resolution.trailing_zeros(),
-            receiver_first: refine::receiver_first(order, resolution.trailing_zeros()),
+            receiver_first: refine::receiver_first(order),
+            levels,
+            sizing,
             threshold: epsilon * emax,
             typical: 0.0,
             indirect: (0..quads.len())
@@ -175,13 +181,18 @@ impl<'g> Hierarchy<'g> {
         while let Some(e) = open.pop() {
             let el = &h.elements[e as usize];
             let straddles = straddles_emission(&quads[el.piece.surface], el.piece);
-            if (straddles || matches!(el.exposure, Exposure::Partial(_))) && el.level < h.max_level
+            if (straddles || matches!(el.exposure, Exposure::Partial(_))) && el.level < h.finest(e)
             {
                 let first = h.split(e);
                 open.extend(first..first + 4);
             }
         }
         h
+    }
+
+    /// The finest level element `e`'s surface may be split to.
+    pub fn finest(&self, e: u32) -> u32 {
+        self.levels[self.elements[e as usize].piece.surface]
     }
 
     /// Links every pair of facing surfaces, refined against the current B.
@@ -204,9 +215,9 @@ impl<'g> Hierarchy<'g> {
     fn outgrown(&self, r: u32, s: u32, x: Factors) -> bool {
         let (er, es) = (&self.elements[r as usize], &self.elements[s as usize]);
         let (kernel, detail) = self.error(r, s, x);
-        let can = er.level < self.max_level || es.level < self.max_level;
+        let can = er.level < self.finest(r) || es.level < self.finest(s);
         // the oracle's share for a receiver along a contact line ([`refine::CONTACT_SHARE`])
-        let contact = er.level < self.max_level && x.contact;
+        let contact = er.level < self.finest(r) && x.contact;
         let limit = if contact {
             refine::CONTACT_SHARE * self.tolerance(r)
         } else {
@@ -426,10 +437,10 @@ impl<'g> Hierarchy<'g> {
 
     /// Fields of B, E and H over each surface, from the leaves.
     pub fn fields(&self, pick: impl Fn(&Element) -> Vec<Rgb>) -> Vec<Field> {
-        let res = 1usize << self.max_level;
         let order = self.k - 1;
         (0..self.quads.len())
             .map(|s| {
+                let res = 1usize << self.levels[s];
                 let mut leaves = Vec::new();
                 self.collect_leaves(s as u32, &pick, &mut leaves);
                 Field::from_leaves(2, order, res, leaves)
@@ -457,11 +468,15 @@ impl<'g> Hierarchy<'g> {
     /// (so that every element covers one run of them), receivers down, sources across; each
     /// link fills its block with the mean kernel value it carries, |T_00| / √(A_r A_s).
     pub fn picture(&self, max_side: usize) -> crate::methods::compress::MagnitudePicture {
-        let per = 1usize << (2 * self.max_level);
+        // each surface's finest cells, one run after another
+        let mut start = vec![0usize; self.quads.len() + 1];
+        for (i, &l) in self.levels.iter().enumerate() {
+            start[i + 1] = start[i] + (1usize << (2 * l));
+        }
         let run = |e: &Element| {
-            let shift = self.max_level - e.level;
+            let shift = self.levels[e.piece.surface] - e.level;
             let (cs, ct) = ((e.cell[0] as usize) << shift, (e.cell[1] as usize) << shift);
-            let lo = e.piece.surface * per + morton(cs, ct);
+            let lo = start[e.piece.surface] + morton(cs, ct);
             lo..lo + (1usize << (2 * shift))
         };
         let blocks = self.links.iter().map(|l| {
@@ -472,7 +487,7 @@ impl<'g> Hierarchy<'g> {
             let v = l.block[0].abs() / (r.area * s.area).sqrt();
             (run(r), run(s), v)
         });
-        crate::methods::compress::block_picture(self.quads.len() * per, max_side, blocks)
+        crate::methods::compress::block_picture(start[self.quads.len()], max_side, blocks)
     }
 
     pub fn stats(&self) -> HierarchyStats {
@@ -488,6 +503,7 @@ impl<'g> Hierarchy<'g> {
                 .unwrap_or(0),
             refinements: self.refinements,
             rays: self.rays,
+            min_element_size: Some(self.sizing.min_element_size),
         }
     }
 }
@@ -518,11 +534,12 @@ fn stopped(h: &Hierarchy, _: Cancelled) -> JobError {
     }
 }
 
-/// Solves a job by hierarchical wavelet radiosity at the given order and finest resolution.
+/// Solves a job by hierarchical wavelet radiosity at the given order, with elements no smaller
+/// than the document's `min_element_size` and, when given, no finer than `resolution`.
 pub fn solve(
     job: &Job,
     order: usize,
-    resolution: usize,
+    resolution: Option<usize>,
     progress: &dyn Progress,
 ) -> Result<Solution, JobError> {
     let SceneKind::ThreeD(quads) = &job.scene.kind else {
@@ -535,7 +552,8 @@ pub fn solve(
     let t = Instant::now();
     progress.report(Phase::Refinement, 0.0);
     let geo = Geometry::new(quads);
-    let mut h = Hierarchy::new(&geo, quads, order, resolution, job.solver.epsilon);
+    let sizing = Sizing::new(&geo.quads, job.solver.min_element_size, resolution);
+    let mut h = Hierarchy::new(&geo, quads, order, sizing, job.solver.epsilon);
     h.link_all(progress).map_err(|c| stopped(&h, c))?;
     let mut refine_ms = ms(t);
     let mut solve_ms = 0.0;

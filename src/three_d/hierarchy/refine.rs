@@ -78,8 +78,8 @@ pub const DIM_SHARE: f64 = 0.0625;
 /// kernel's or more put the balance back at 0.989 but the cells at 3.6 %. Below that level
 /// the larger piece is split as before: to split receivers first at every level cost up to
 /// twelve times the links, for no better cells.
-pub fn receiver_first(order: usize, max_level: u32) -> u32 {
-    3u32.saturating_sub((order + 1).ilog2()).min(max_level)
+pub fn receiver_first(order: usize) -> u32 {
+    3u32.saturating_sub((order + 1).ilog2())
 }
 
 /// The geometric part of the oracle's estimate for one pair.
@@ -316,7 +316,7 @@ impl Hierarchy<'_> {
     }
 
     fn splittable(&self, e: u32) -> bool {
-        self.elements[e as usize].level < self.max_level
+        self.elements[e as usize].level < self.finest(e)
     }
 
     /// The oracle's estimate of the error of a link from `s` to `r`, in two parts: what the

@@ -1,0 +1,139 @@
+#!/usr/bin/env python3
+"""Writes the gallery of 3D test scenes (rooms with boxes, rotated boxes, a small object, a box
+against a wall, a light in a corner) as job documents at the solver's defaults
+(hierarchical, order 1, the default epsilon and element size). The tests in
+tests/gallery.rs solve each and compare it with a path-traced reference.
+
+    python3 scenes/gallery/make.py        # rewrites scenes/gallery/*.json
+"""
+import json
+import math
+import os
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+WHITE, RED, GREEN = 0.7, [0.63, 0.07, 0.06], [0.14, 0.45, 0.09]
+
+
+def quad(name, p0, p1, p3, rho, emission=None):
+    """The parallelogram p0, p1, p0 + (p1 - p0) + (p3 - p0), p3, front by the right hand."""
+    p2 = [p1[i] + p3[i] - p0[i] for i in range(3)]
+    s = {"name": name, "corners": [r(p0), r(p1), r(p2), r(p3)], "reflectance": rho}
+    if emission is not None:
+        s["emission"] = emission
+    return s
+
+
+def r(p):
+    return [round(x, 9) + 0.0 for x in p]
+
+
+def room(w, h, d, left=WHITE, right=WHITE):
+    """The inside of the box [0,w] x [0,h] x [0,d], every face toward the inside; y is up."""
+    return [
+        quad("floor", [0, 0, 0], [0, 0, d], [w, 0, 0], WHITE),
+        quad("ceiling", [0, h, 0], [w, h, 0], [0, h, d], WHITE),
+        quad("back", [0, 0, d], [0, h, d], [w, 0, d], WHITE),
+        quad("front", [0, 0, 0], [w, 0, 0], [0, h, 0], WHITE),
+        quad("left", [0, 0, 0], [0, h, 0], [0, 0, d], left),
+        quad("right", [w, 0, 0], [w, 0, d], [w, h, 0], right),
+    ]
+
+
+def ceiling_light(x0, z0, x1, z1, y, e):
+    """A light hanging at height y, facing down."""
+    return quad("light", [x0, y, z0], [x1, y, z0], [x0, y, z1], 0.0, e)
+
+
+def box(name, cx, cz, sx, sy, sz, angle_deg=0.0, rho=WHITE, y0=0.0):
+    """An open-bottomed box standing at (cx, y0, cz), sides sx x sz, height sy, turned by
+    angle_deg about the vertical: four sides and a top, facing out."""
+    a = math.radians(angle_deg)
+    c, s = math.cos(a), math.sin(a)
+
+    def at(u, v, y):  # local (u along x, v along z) to world
+        return [cx + c * u - s * v, y0 + y, cz + s * u + c * v]
+
+    hx, hz = sx / 2, sz / 2
+    return [
+        quad(f"{name}-top", at(-hx, -hz, sy), at(-hx, hz, sy), at(hx, -hz, sy), rho),
+        # -z side, normal -z: p1 - p0 along +x, p3 - p0 along +y gives (x × y) = +z: swap
+        quad(f"{name}-south", at(-hx, -hz, 0), at(-hx, -hz, sy), at(hx, -hz, 0), rho),
+        quad(f"{name}-north", at(-hx, hz, 0), at(hx, hz, 0), at(-hx, hz, sy), rho),
+        quad(f"{name}-west", at(-hx, -hz, 0), at(-hx, hz, 0), at(-hx, -hz, sy), rho),
+        quad(f"{name}-east", at(hx, -hz, 0), at(hx, -hz, sy), at(hx, hz, 0), rho),
+    ]
+
+
+def doc(name, surfaces, eye, look, grid=4):
+    return {
+        "scene": {"kind": "3d", "name": name, "surfaces": surfaces},
+        "solver": {"method": "hierarchical"},
+        "output": {
+            "grid": grid,
+            "camera": {"eye": eye, "look_at": look, "up": [0, 1, 0], "fov_deg": 60},
+        },
+    }
+
+
+def grid_room(n):
+    """A 10 x 10 x 10 room with an n x n grid of boxes and a 2 x 2 light under the ceiling."""
+    surfaces = room(10, 10, 10)
+    surfaces.append(ceiling_light(4, 4, 6, 6, 9.99, 10.0))
+    step = 10 / (n + 1)
+    size = 0.5 * step
+    for i in range(n):
+        for j in range(n):
+            height = size * (1.0 + 0.5 * ((i + 2 * j) % 3))
+            surfaces += box(f"box{i}{j}", step * (i + 1), step * (j + 1), size, height, size)
+    return doc(f"A room with {n} x {n} boxes", surfaces, [5, 6, -8], [5, 3, 5])
+
+
+def rotated_boxes():
+    surfaces = room(10, 6, 10, left=RED, right=GREEN)
+    surfaces.append(ceiling_light(4, 4, 6, 6, 5.99, 12.0))
+    surfaces += box("a", 3, 3, 2, 2, 2, 30)
+    surfaces += box("b", 7, 4, 1.5, 3, 1.5, 45)
+    surfaces += box("c", 4.5, 7.5, 3, 1, 1.5, -20)
+    return doc("Rotated boxes", surfaces, [5, 4, -6], [5, 1.5, 5])
+
+
+def small_object():
+    surfaces = room(10, 10, 10)
+    surfaces.append(ceiling_light(4, 4, 6, 6, 9.99, 10.0))
+    surfaces += box("cube", 5, 5, 0.3, 0.3, 0.3, 0, [0.8, 0.3, 0.2])
+    return doc("A small cube in a large room", surfaces, [5, 1, 3], [5, 0.15, 5])
+
+
+def box_against_wall():
+    surfaces = room(8, 5, 8)
+    surfaces.append(ceiling_light(3, 3, 5, 5, 4.99, 10.0))
+    # the box's north side lies in the back wall's plane: left out, the wall is there
+    b = box("box", 4, 7, 3, 2, 2, 0, [0.3, 0.5, 0.8])
+    surfaces += [s for s in b if not s["name"].endswith("-north")]
+    return doc("A box against a wall", surfaces, [4, 3, -5], [4, 1, 6])
+
+
+def corner_light():
+    surfaces = room(8, 4, 6, left=RED, right=GREEN)
+    surfaces.append(ceiling_light(0.3, 0.3, 1.8, 1.8, 3.9, 20.0))
+    surfaces += box("box", 5, 3.5, 2, 1.5, 2, 15)
+    return doc("A light in a corner", surfaces, [4, 2.5, -5], [4, 1, 3])
+
+
+def main():
+    scenes = {
+        "room-3x3": grid_room(3),
+        "room-7x7": grid_room(7),
+        "rotated-boxes": rotated_boxes(),
+        "small-object": small_object(),
+        "box-against-wall": box_against_wall(),
+        "corner-light": corner_light(),
+    }
+    for name, d in scenes.items():
+        with open(os.path.join(HERE, f"{name}.json"), "w") as f:
+            json.dump(d, f, indent=1)
+            f.write("\n")
+
+
+if __name__ == "__main__":
+    main()

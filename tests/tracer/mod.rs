@@ -1,0 +1,356 @@
+//! An independent Monte Carlo reference for the 3D solvers.
+//!
+//! It shares no code with the library: it reads the scene's JSON itself, intersects rays with
+//! the parallelograms by brute force, and estimates the radiosity equation
+//! B(x) = E(x) + ρ(x) ∫ B(y) cosθx cosθy / (π r²) V(x, y) dA_y by path tracing with next-event
+//! estimation (a light point sampled on every emitter at every vertex) and Russian roulette.
+//! It returns cell means on the same `grid × grid` split as the result, each with its standard
+//! error, so that a comparison can tell a real difference from sampling noise.
+#![allow(dead_code)]
+
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+use serde_json::Value;
+use wavrad::job;
+use wavrad::progress::Silent;
+use wavrad::scene::{parse_value, Limits};
+
+pub type V3 = [f64; 3];
+
+pub fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+pub fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+pub fn scale(a: V3, s: f64) -> V3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+pub fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+pub fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+pub fn mul(a: V3, b: V3) -> V3 {
+    [a[0] * b[0], a[1] * b[1], a[2] * b[2]]
+}
+
+/// One parallelogram p(s, t) = p0 + s e1 + t e2 as the spec defines it.
+pub struct Quad {
+    pub p0: V3,
+    pub e1: V3,
+    pub e2: V3,
+    pub n: V3,
+    pub area: f64,
+    pub rho: V3,
+    pub emission: V3,
+    pub region: ([f64; 2], [f64; 2]),
+}
+
+impl Quad {
+    pub fn at(&self, s: f64, t: f64) -> V3 {
+        add(self.p0, add(scale(self.e1, s), scale(self.e2, t)))
+    }
+
+    /// The distance along `dir` from `o` to this parallelogram, if the ray meets it.
+    pub fn hit(&self, o: V3, dir: V3) -> Option<f64> {
+        // Möller–Trumbore for a parallelogram: solve o + h dir = p0 + s e1 + t e2
+        let p = cross(dir, self.e2);
+        let det = dot(self.e1, p);
+        if det.abs() < 1e-300 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let q = sub(o, self.p0);
+        let s = dot(q, p) * inv;
+        if !(0.0..=1.0).contains(&s) {
+            return None;
+        }
+        let r = cross(q, self.e1);
+        let t = dot(dir, r) * inv;
+        if !(0.0..=1.0).contains(&t) {
+            return None;
+        }
+        Some(dot(self.e2, r) * inv)
+    }
+
+    pub fn emits(&self, s: f64, t: f64) -> bool {
+        let (rs, rt) = self.region;
+        rs[0] <= s && s <= rs[1] && rt[0] <= t && t <= rt[1]
+    }
+}
+
+pub fn rgb(v: Option<&Value>, default: f64) -> V3 {
+    match v {
+        None => [default; 3],
+        Some(Value::Array(a)) => [0, 1, 2].map(|i| a[i].as_f64().expect("number")),
+        Some(x) => [x.as_f64().expect("number"); 3],
+    }
+}
+
+pub fn point(v: &Value) -> V3 {
+    [0, 1, 2].map(|i| v[i].as_f64().expect("coordinate"))
+}
+
+pub fn quads(doc: &Value) -> Vec<Quad> {
+    doc["scene"]["surfaces"]
+        .as_array()
+        .expect("surfaces")
+        .iter()
+        .map(|s| {
+            let c = s["corners"].as_array().expect("corners");
+            let p0 = point(&c[0]);
+            let e1 = sub(point(&c[1]), p0);
+            let e2 = sub(point(&c[3]), p0);
+            let n = cross(e1, e2);
+            let area = dot(n, n).sqrt();
+            let region = match s.get("emission_region") {
+                Some(r) => (
+                    [r["s"][0].as_f64().unwrap(), r["s"][1].as_f64().unwrap()],
+                    [r["t"][0].as_f64().unwrap(), r["t"][1].as_f64().unwrap()],
+                ),
+                None => ([0.0, 1.0], [0.0, 1.0]),
+            };
+            Quad {
+                p0,
+                e1,
+                e2,
+                n: scale(n, 1.0 / area),
+                area,
+                rho: rgb(s.get("reflectance"), 0.0),
+                emission: rgb(s.get("emission"), 0.0),
+                region,
+            }
+        })
+        .collect()
+}
+
+pub struct Tracer {
+    pub quads: Vec<Quad>,
+    pub emitters: Vec<usize>,
+    /// A length far below any feature of the scene, to step off surfaces.
+    pub eps: f64,
+}
+
+impl Tracer {
+    pub fn new(doc: &Value) -> Tracer {
+        let quads = quads(doc);
+        let emitters = (0..quads.len())
+            .filter(|&i| quads[i].emission.iter().any(|&e| e > 0.0))
+            .collect();
+        let size = quads
+            .iter()
+            .map(|q| dot(q.e1, q.e1).max(dot(q.e2, q.e2)).sqrt())
+            .fold(0.0, f64::max);
+        Tracer {
+            quads,
+            emitters,
+            eps: 1e-9 * size,
+        }
+    }
+
+    /// The nearest surface the ray from `o` along the unit `dir` meets, other than `skip`.
+    pub fn nearest(&self, o: V3, dir: V3, skip: usize) -> Option<(usize, f64)> {
+        let mut best: Option<(usize, f64)> = None;
+        for (i, q) in self.quads.iter().enumerate() {
+            if i == skip {
+                continue;
+            }
+            if let Some(h) = q.hit(o, dir) {
+                if h > self.eps && best.is_none_or(|(_, b)| h < b) {
+                    best = Some((i, h));
+                }
+            }
+        }
+        best
+    }
+
+    /// Whether anything but surfaces `a` and `b` lies strictly between x and y.
+    pub fn blocked(&self, x: V3, y: V3, a: usize, b: usize) -> bool {
+        let d = sub(y, x);
+        let len = dot(d, d).sqrt();
+        let dir = scale(d, 1.0 / len);
+        self.quads.iter().enumerate().any(|(i, q)| {
+            i != a
+                && i != b
+                && q.hit(x, dir)
+                    .is_some_and(|h| h > self.eps && h < len - self.eps)
+        })
+    }
+
+    /// Irradiance / π from every emitter at x on surface `on`, one light sample each.
+    pub fn direct(&self, x: V3, on: usize, rng: &mut SmallRng) -> V3 {
+        let n = self.quads[on].n;
+        let mut sum = [0.0; 3];
+        for &l in &self.emitters {
+            if l == on {
+                continue;
+            }
+            let q = &self.quads[l];
+            let (rs, rt) = q.region;
+            let s = rs[0] + (rs[1] - rs[0]) * rng.random::<f64>();
+            let t = rt[0] + (rt[1] - rt[0]) * rng.random::<f64>();
+            let y = q.at(s, t);
+            let d = sub(y, x);
+            let r2 = dot(d, d);
+            let cx = dot(d, n);
+            let cy = -dot(d, q.n);
+            if cx <= 0.0 || cy <= 0.0 || self.blocked(x, y, on, l) {
+                continue;
+            }
+            let area = q.area * (rs[1] - rs[0]) * (rt[1] - rt[0]);
+            let g = cx * cy / (std::f64::consts::PI * r2 * r2) * area;
+            sum = add(sum, scale(q.emission, g));
+        }
+        sum
+    }
+
+    /// ∫ B(y) cos/(π r²) V dA_y at x on `on`, without the emitters' own E (counted by `direct`).
+    pub fn gathered(&self, x: V3, on: usize, rng: &mut SmallRng) -> V3 {
+        let mut total = self.direct(x, on, rng);
+        // one cosine-distributed direction: its estimator of ∫ B cosθx/π dω is B(y) itself
+        let n = self.quads[on].n;
+        let (u1, u2): (f64, f64) = (rng.random(), rng.random());
+        let (r, phi) = (u1.sqrt(), 2.0 * std::f64::consts::PI * u2);
+        let a = if n[0].abs() > 0.5 {
+            [0.0, 1.0, 0.0]
+        } else {
+            [1.0, 0.0, 0.0]
+        };
+        let b1 = cross(n, a);
+        let b1 = scale(b1, 1.0 / dot(b1, b1).sqrt());
+        let b2 = cross(n, b1);
+        let dir = add(
+            add(scale(b1, r * phi.cos()), scale(b2, r * phi.sin())),
+            scale(n, (1.0 - u1).sqrt()),
+        );
+        if let Some((hit, h)) = self.nearest(x, dir, on) {
+            let q = &self.quads[hit];
+            if dot(dir, q.n) < 0.0 {
+                let keep = q.rho.iter().copied().fold(0.0, f64::max);
+                if keep > 0.0 && rng.random::<f64>() < keep {
+                    let y = add(x, scale(dir, h));
+                    let more = self.gathered(y, hit, rng);
+                    total = add(total, scale(mul(q.rho, more), 1.0 / keep));
+                }
+            }
+        }
+        total
+    }
+
+    /// Cell means of B on every surface (`grid × grid`, rows by t then s) from
+    /// `per_side²` stratified samples per cell, with their standard errors.
+    pub fn cells(&self, grid: usize, per_side: usize, seed: u64) -> Vec<Vec<(V3, V3)>> {
+        (0..self.quads.len())
+            .map(|on| {
+                (0..grid * grid)
+                    .into_par_iter()
+                    .map(|cell| {
+                        let (ci, cj) = (cell % grid, cell / grid);
+                        let mut rng = SmallRng::seed_from_u64(
+                            seed ^ ((on as u64) << 40) ^ ((cell as u64) << 8),
+                        );
+                        let q = &self.quads[on];
+                        let (mut sum, mut sq) = ([0.0; 3], [0.0; 3]);
+                        for k in 0..per_side * per_side {
+                            let s = (ci as f64
+                                + ((k % per_side) as f64 + rng.random::<f64>()) / per_side as f64)
+                                / grid as f64;
+                            let t = (cj as f64
+                                + ((k / per_side) as f64 + rng.random::<f64>()) / per_side as f64)
+                                / grid as f64;
+                            let x = q.at(s, t);
+                            let e = if q.emits(s, t) { q.emission } else { [0.0; 3] };
+                            let b = add(e, mul(q.rho, self.gathered(x, on, &mut rng)));
+                            sum = add(sum, b);
+                            sq = add(sq, mul(b, b));
+                        }
+                        let m = (per_side * per_side) as f64;
+                        let mean = scale(sum, 1.0 / m);
+                        let err = [0, 1, 2]
+                            .map(|c| ((sq[c] / m - mean[c] * mean[c]).max(0.0) / (m - 1.0)).sqrt());
+                        (mean, err)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// A solution against the reference.
+pub struct Comparison {
+    /// Per surface (not emitting): name, the largest |solver / reference − 1| over the
+    /// channels, and that channel's relative standard error of the reference.
+    pub surfaces: Vec<(String, f64, f64)>,
+    /// Relative L2 gap of all cell means of the surfaces that do not emit.
+    pub cells: f64,
+    /// The same for the reference's own sampling error.
+    pub cells_noise: f64,
+}
+
+impl Comparison {
+    /// The relative L2 gap of the cell means without the reference's own noise.
+    pub fn net(&self) -> f64 {
+        (self.cells.powi(2) - self.cells_noise.powi(2))
+            .max(0.0)
+            .sqrt()
+    }
+}
+
+/// Cell means of the reference on the document's grid, `per_side²` paths per cell.
+pub fn reference(doc: &Value, per_side: usize) -> Vec<Vec<(V3, V3)>> {
+    let grid = doc["output"]["grid"].as_u64().unwrap_or(8) as usize;
+    Tracer::new(doc).cells(grid, per_side, 0x5eed)
+}
+
+pub fn compare(doc: &Value, reference: &[Vec<(V3, V3)>], label: &str) -> Comparison {
+    let tracer = Tracer::new(doc);
+    let j = parse_value(doc, &Limits::default()).expect("valid document");
+    let out = job::run(&j, &Silent).expect("solves");
+    let mut surfaces = Vec::new();
+    let (mut gap2, mut noise2, mut norm2) = (0.0, 0.0, 0.0);
+    eprintln!("{label}: surface means, solver / path traced − 1 (± 1 standard error)");
+    for ((s, cells), q) in out.result.surfaces.iter().zip(reference).zip(&tracer.quads) {
+        if q.emission.iter().any(|&e| e > 0.0) {
+            continue;
+        }
+        let m = cells.len() as f64;
+        let mut line = format!("  {:12}", s.name);
+        let (mut worst, mut noise) = (0.0_f64, 0.0);
+        for c in 0..3 {
+            let mean: f64 = cells.iter().map(|(v, _)| v[c]).sum::<f64>() / m;
+            let err: f64 = cells.iter().map(|(_, e)| e[c] * e[c]).sum::<f64>().sqrt() / m;
+            let rel = s.mean[c] / mean - 1.0;
+            line += &format!(" {:+7.2}% ±{:.2}%", 100.0 * rel, 100.0 * err / mean);
+            if rel.abs() > worst {
+                (worst, noise) = (rel.abs(), err / mean);
+            }
+        }
+        eprintln!("{line}");
+        surfaces.push((s.name.clone(), worst, noise));
+        for (got, (want, err)) in s.cells.iter().zip(cells) {
+            for c in 0..3 {
+                gap2 += (got[c] - want[c]).powi(2);
+                noise2 += err[c] * err[c];
+                norm2 += want[c] * want[c];
+            }
+        }
+    }
+    let cmp = Comparison {
+        surfaces,
+        cells: (gap2 / norm2).sqrt(),
+        cells_noise: (noise2 / norm2).sqrt(),
+    };
+    eprintln!(
+        "  cell means: relative L2 gap {:.2}% (reference noise {:.2}%)",
+        100.0 * cmp.cells,
+        100.0 * cmp.cells_noise
+    );
+    cmp
+}
