@@ -40,5 +40,6 @@ pub mod server;
 pub mod solve;
 pub mod space;
 pub mod transfer;
+pub mod triangle;
 pub mod visibility;
 pub mod visibility3d;
