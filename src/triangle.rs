@@ -117,9 +117,9 @@ pub fn to_parent(child: usize, s: f64, t: f64) -> [f64; 2] {
     ]
 }
 
-/// The child that holds the parent's point (s, t), and that point in the child's (s, t): the
-/// inverse of [`to_parent`]. A point on an edge between two children goes to the corner child
-/// (1 before 2 before 0) rather than the centre one.
+/// The child that holds the parent's point (s, t) (a point of the triangle), and that point in
+/// the child's (s, t): the inverse of [`to_parent`]. A point on an edge between two children
+/// goes to the corner child rather than the centre one, and (½, ½) to child 1.
 pub fn locate(s: f64, t: f64) -> (usize, [f64; 2]) {
     if s >= 0.5 {
         (1, [2.0 * s - 1.0, 2.0 * t])
