@@ -1,6 +1,7 @@
 //! The 3D speed goals: the Cornell box by the hierarchical method (solve, and solve + a
-//! 512 × 512 image), visibility rays through the BVH, and projection against hierarchical on
-//! the parallel plates as the resolution grows. Figures in `benches/README.md`.
+//! 512 × 512 image), the gallery's rooms with 3 × 3 and 7 × 7 boxes at the document defaults,
+//! visibility rays through the BVH, and projection against hierarchical on the parallel plates
+//! as the resolution grows. Figures in `benches/README.md`.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rayon::prelude::*;
@@ -35,6 +36,19 @@ fn cornell_box(c: &mut Criterion) {
             black_box(camera::render(&j, &out, 512, 512))
         })
     });
+    g.finish();
+}
+
+fn gallery(c: &mut Criterion) {
+    let mut g = c.benchmark_group("gallery at the defaults");
+    g.sample_size(10);
+    for name in ["room-3x3", "room-7x7"] {
+        let j =
+            parse_document(&scene(&format!("gallery/{name}")), &Limits::default()).expect("valid");
+        g.bench_function(format!("{name} hierarchical solve"), |b| {
+            b.iter(|| black_box(job::run(&j, &Silent).expect("solves")))
+        });
+    }
     g.finish();
 }
 
@@ -93,5 +107,5 @@ fn growth(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, cornell_box, rays, growth);
+criterion_group!(benches, cornell_box, gallery, rays, growth);
 criterion_main!(benches);

@@ -58,9 +58,9 @@ fn random_mutations_never_panic() {
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
     let docs: Vec<Value> = std::fs::read_dir(dir)
         .unwrap()
-        .map(|e| {
-            serde_json::from_str(&std::fs::read_to_string(e.unwrap().path()).unwrap()).unwrap()
-        })
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "json"))
+        .map(|p| serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap())
         .collect();
     let mut r = Lcg(42);
     let (mut valid, mut invalid) = (0, 0);
