@@ -201,8 +201,9 @@ fn hierarchical_links_grow_linearly_with_the_leaves() {
         let mut rows = vec![];
         for res in [32, 64, 128] {
             let mut doc = scene_file("cornell-box");
-            doc["solver"] =
-                json!({ "method": "hierarchical", "order": 0, "resolution": res, "epsilon": eps });
+            // elements down to a unit (a 555th of a wall), so that the resolution is the limit
+            doc["solver"] = json!({ "method": "hierarchical", "order": 0, "resolution": res,
+                "epsilon": eps, "min_element_size": 1.0 });
             let h = run(doc).result.hierarchical.expect("stats");
             rows.push((h.leaves as f64, h.links as f64));
         }
