@@ -657,8 +657,11 @@ impl Queue {
         inner.running.fetch_add(1, Ordering::SeqCst);
         let start = Instant::now();
         entry.status.send_modify(|s| {
+            if s.state != JobState::Running {
+                // (a job claimed from a shared store is running since its claim)
+                s.started_ms = Some(now_ms());
+            }
             s.state = JobState::Running;
-            s.started_ms = Some(now_ms());
             s.progress = ProgressInfo {
                 phase: "projection".into(),
                 fraction: 0.0,

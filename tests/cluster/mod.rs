@@ -59,8 +59,8 @@ impl Server {
     }
 }
 
-/// Starts `wavrad serve` on `database` with one worker, a short lease and poll interval, and
-/// waits until it is ready.
+/// Starts `wavrad serve` on `database` with one worker, a short lease (2 s) and poll interval
+/// (100 ms), and waits until it is ready.
 pub async fn start(database: &str, extra: &[&str]) -> Server {
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("stderr.log");
@@ -77,6 +77,11 @@ pub async fn start(database: &str, extra: &[&str]) -> Server {
             "2s",
             "--poll-interval",
             "100ms",
+            // the long jobs of the tests
+            "--max-resolution",
+            "512",
+            "--max-basis-functions",
+            "6144",
             "--database",
             database,
         ])
