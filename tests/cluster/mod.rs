@@ -59,8 +59,8 @@ impl Server {
     }
 }
 
-/// Starts `wavrad serve` on `database` with one worker, a short lease (2 s) and poll interval
-/// (100 ms), and waits until it is ready.
+/// Starts `wavrad serve` on `database` with one worker, a short lease (2 s unless `extra`
+/// sets one) and poll interval (100 ms), and waits until it is ready.
 pub async fn start(database: &str, extra: &[&str]) -> Server {
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("stderr.log");
@@ -73,8 +73,6 @@ pub async fn start(database: &str, extra: &[&str]) -> Server {
             "1",
             "--shutdown-grace",
             "0s",
-            "--lease",
-            "2s",
             "--poll-interval",
             "100ms",
             // the long jobs of the tests
@@ -86,6 +84,11 @@ pub async fn start(database: &str, extra: &[&str]) -> Server {
             database,
         ])
         .args(extra)
+        .args(if extra.contains(&"--lease") {
+            &[][..]
+        } else {
+            &["--lease", "2s"][..]
+        })
         .arg("--data-dir")
         .arg(dir.path().join("unused"))
         .stdout(Stdio::piped())
