@@ -45,7 +45,13 @@ fn start(database: Option<&str>, dir: &std::path::Path, workers: usize) -> Serve
     BufReader::new(child.stdout.take().unwrap())
         .read_line(&mut line)
         .unwrap();
-    let base = line.trim().rsplit(' ').next().unwrap().trim_end_matches('/').to_string();
+    let base = line
+        .trim()
+        .rsplit(' ')
+        .next()
+        .unwrap()
+        .trim_end_matches('/')
+        .to_string();
     Server { child, base }
 }
 
@@ -63,10 +69,12 @@ async fn fresh_database(cluster: &str, name: &str) -> String {
         .await
         .unwrap();
     tokio::spawn(connection);
-    client
-        .batch_execute(&format!("DROP DATABASE IF EXISTS {name}; CREATE DATABASE {name}"))
-        .await
-        .unwrap();
+    for sql in [
+        format!("DROP DATABASE IF EXISTS {name}"),
+        format!("CREATE DATABASE {name}"),
+    ] {
+        client.batch_execute(&sql).await.unwrap();
+    }
     format!("{}/{name}", cluster.rsplit_once('/').unwrap().0)
 }
 
