@@ -79,14 +79,23 @@ fn records_files_and_removal(store: &dyn Store) {
 }
 
 fn insertion_listing_and_counts(store: &dyn Store) {
-    assert_eq!(store.insert(&record("j1", 100), 2).unwrap(), Inserted::New);
-    assert_eq!(store.insert(&record("j2", 200), 2).unwrap(), Inserted::New);
     assert_eq!(
-        store.insert(&record("j1", 999), 2).unwrap(),
+        store.insert(&record("j1", 100), 2, true).unwrap(),
+        Inserted::New
+    );
+    assert_eq!(
+        store.insert(&record("j2", 200), 2, true).unwrap(),
+        Inserted::New
+    );
+    assert_eq!(
+        store.insert(&record("j1", 999), 2, true).unwrap(),
         Inserted::Existing(Box::new(record("j1", 100))),
         "the same id is the same job, full queue or not"
     );
-    assert_eq!(store.insert(&record("j3", 300), 2).unwrap(), Inserted::Full);
+    assert_eq!(
+        store.insert(&record("j3", 300), 2, true).unwrap(),
+        Inserted::Full
+    );
     assert_eq!(store.job("j3").unwrap(), None, "a refused job is not kept");
     store
         .put_job(&finished(record("j0", 300), JobState::Failed, 5))
@@ -100,7 +109,10 @@ fn insertion_listing_and_counts(store: &dyn Store) {
 
 fn claims_and_leases(store: &dyn Store) {
     for (id, t) in [("c2", 20), ("c1", 10), ("c3", 30)] {
-        assert_eq!(store.insert(&record(id, t), 100).unwrap(), Inserted::New);
+        assert_eq!(
+            store.insert(&record(id, t), 100, true).unwrap(),
+            Inserted::New
+        );
     }
     // oldest first, each to one owner
     let first = store.claim("p1", LONG).unwrap().unwrap();
@@ -176,7 +188,9 @@ fn claims_and_leases(store: &dyn Store) {
 fn concurrent_claims(store: Arc<dyn Store>) {
     for i in 0..40 {
         assert_eq!(
-            store.insert(&record(&format!("k{i:02}"), i), 100).unwrap(),
+            store
+                .insert(&record(&format!("k{i:02}"), i), 100, true)
+                .unwrap(),
             Inserted::New
         );
     }

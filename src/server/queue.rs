@@ -443,7 +443,7 @@ impl Queue {
     pub fn submit(&self, document: Value, job: Job, durable: bool) -> Result<Submitted, Problem> {
         let inner = &self.inner;
         if inner.shared.is_some() {
-            return self.submit_shared(document, job);
+            return self.submit_shared(document, job, durable);
         }
         let id = job_id(&document);
         let mut entries = inner.entries.lock().expect("entries lock");

@@ -78,7 +78,12 @@ impl Queue {
     }
 
     /// [`Queue::submit`] with a shared store: one row per id across every process.
-    pub(super) fn submit_shared(&self, document: Value, job: Job) -> Result<Submitted, Problem> {
+    pub(super) fn submit_shared(
+        &self,
+        document: Value,
+        job: Job,
+        durable: bool,
+    ) -> Result<Submitted, Problem> {
         let inner = &self.inner;
         let id = job_id(&document);
         if inner.draining.load(Ordering::SeqCst) {
@@ -94,7 +99,7 @@ impl Queue {
         };
         match inner
             .store
-            .insert(&record, inner.config.queue_capacity)
+            .insert(&record, inner.config.queue_capacity, durable)
             .map_err(unavailable)?
         {
             Inserted::New => {

@@ -195,8 +195,16 @@ impl Store for Embedded {
         Ok(existed)
     }
 
-    fn insert(&self, record: &Record, capacity: usize) -> Result<Inserted, StoreError> {
-        let txn = self.db.begin_write().map_err(dberr)?;
+    fn insert(
+        &self,
+        record: &Record,
+        capacity: usize,
+        durable: bool,
+    ) -> Result<Inserted, StoreError> {
+        let mut txn = self.db.begin_write().map_err(dberr)?;
+        if !durable {
+            txn.set_durability(redb::Durability::None);
+        }
         if let Some(existing) = Self::read_record(&txn, record.id())? {
             return Ok(Inserted::Existing(Box::new(existing)));
         }

@@ -99,8 +99,14 @@ pub trait Store: Send + Sync {
     fn remove(&self, id: &str) -> Result<bool, StoreError>;
 
     /// Adds a queued job unless one with its id is there; `Full` when `capacity` jobs are
-    /// queued already. Durable before it returns.
-    fn insert(&self, record: &Record, capacity: usize) -> Result<Inserted, StoreError>;
+    /// queued already. `durable`: on disk before it returns (otherwise with the next durable
+    /// write, as [`Store::put_job_lazily`]).
+    fn insert(
+        &self,
+        record: &Record,
+        capacity: usize,
+        durable: bool,
+    ) -> Result<Inserted, StoreError>;
     /// One job's record.
     fn job(&self, id: &str) -> Result<Option<Record>, StoreError>;
     /// Statuses, newest first (then by id), at most `limit`.
@@ -111,6 +117,9 @@ pub trait Store: Send + Sync {
     /// `owner` until `lease` from now: its record, now `running` (`started_ms` set, progress
     /// at the start of the projection). At most one caller gets a given job.
     fn claim(&self, owner: &str, lease: Duration) -> Result<Option<Record>, StoreError>;
+    /// Claims, renewals and releases need not wait for the disk: lost in a crash of the
+    /// store, they leave a job queued or its lease shorter, which the queue survives.
+    ///
     /// Extends `owner`'s lease on a running job and writes its status (progress). `false`
     /// when the job is gone or no longer `owner`'s: the caller must stop solving it.
     fn renew(&self, owner: &str, lease: Duration, status: &JobStatus) -> Result<bool, StoreError>;

@@ -315,11 +315,22 @@ impl Store for Postgres {
     /// One statement: the count of queued jobs and the insert see the same snapshot, so
     /// processes inserting at the same instant may each pass a nearly full queue; the
     /// capacity is a limit on the backlog, not an exact count.
-    fn insert(&self, record: &Record, capacity: usize) -> Result<Inserted, StoreError> {
+    fn insert(
+        &self,
+        record: &Record,
+        capacity: usize,
+        durable: bool,
+    ) -> Result<Inserted, StoreError> {
         let (document, status) = texts(record)?;
         self.run(async {
-            let client = self.pool.get().await.map_err(pgerr)?;
-            let inserted = client
+            let mut client = self.pool.get().await.map_err(pgerr)?;
+            let txn = client.transaction().await.map_err(pgerr)?;
+            if !durable {
+                txn.batch_execute("SET LOCAL synchronous_commit = off")
+                    .await
+                    .map_err(pgerr)?;
+            }
+            let inserted = txn
                 .query_opt(
                     "WITH q AS (SELECT count(*) AS n FROM wavrad_jobs WHERE state = 'queued')
                      INSERT INTO wavrad_jobs (id, state, created_ms, document, status)
@@ -336,15 +347,17 @@ impl Store for Postgres {
                 .await
                 .map_err(pgerr)?;
             if inserted.is_some() {
+                txn.commit().await.map_err(pgerr)?;
                 return Ok(Inserted::New);
             }
-            let row = client
+            let row = txn
                 .query_opt(
                     "SELECT document, status FROM wavrad_jobs WHERE id = $1",
                     &[&record.id()],
                 )
                 .await
                 .map_err(pgerr)?;
+            txn.commit().await.map_err(pgerr)?;
             Ok(match row {
                 Some(r) => Inserted::Existing(Box::new(parse_record(r.get(0), r.get(1))?)),
                 None => Inserted::Full,
@@ -411,6 +424,9 @@ impl Store for Postgres {
         self.run(async {
             let mut client = self.pool.get().await.map_err(pgerr)?;
             let txn = client.transaction().await.map_err(pgerr)?;
+            txn.batch_execute("SET LOCAL synchronous_commit = off")
+                .await
+                .map_err(pgerr)?;
             let row = txn
                 .query_opt(
                     "UPDATE wavrad_jobs
@@ -448,8 +464,12 @@ impl Store for Postgres {
     fn renew(&self, owner: &str, lease: Duration, status: &JobStatus) -> Result<bool, StoreError> {
         let text = serde_json::to_string(status)?;
         self.run(async {
-            let client = self.pool.get().await.map_err(pgerr)?;
-            let n = client
+            let mut client = self.pool.get().await.map_err(pgerr)?;
+            let txn = client.transaction().await.map_err(pgerr)?;
+            txn.batch_execute("SET LOCAL synchronous_commit = off")
+                .await
+                .map_err(pgerr)?;
+            let n = txn
                 .execute(
                     "UPDATE wavrad_jobs
                      SET lease_until = clock_timestamp() + $3::float8 * interval '1 millisecond',
@@ -459,6 +479,7 @@ impl Store for Postgres {
                 )
                 .await
                 .map_err(pgerr)?;
+            txn.commit().await.map_err(pgerr)?;
             Ok(n == 1)
         })
     }
@@ -501,6 +522,9 @@ impl Store for Postgres {
         self.run(async {
             let mut client = self.pool.get().await.map_err(pgerr)?;
             let txn = client.transaction().await.map_err(pgerr)?;
+            txn.batch_execute("SET LOCAL synchronous_commit = off")
+                .await
+                .map_err(pgerr)?;
             let row = txn
                 .query_opt(
                     "SELECT status FROM wavrad_jobs
