@@ -16,7 +16,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Serve the HTTP API and the web page.
-    Serve(Config),
+    Serve(Box<Config>),
     /// Solve one job document and write DIR/result.json and the images.
     Render {
         /// The job document (JSON).
@@ -44,13 +44,17 @@ fn main() -> ExitCode {
             .init();
     }
     match Cli::parse().command {
-        Command::Serve(config) => serve(config),
+        Command::Serve(config) => serve(*config),
         Command::Render { doc, out } => render(&doc, &out),
         Command::Validate { doc } => validate(&doc),
     }
 }
 
 fn serve(config: Config) -> ExitCode {
+    if let Err(e) = config.check() {
+        eprintln!("wavrad: {e}");
+        return ExitCode::from(2);
+    }
     let runtime = tokio::runtime::Runtime::new().expect("a tokio runtime");
     let result = runtime.block_on(async {
         let listener = tokio::net::TcpListener::bind(config.addr).await?;

@@ -56,6 +56,21 @@ pub struct Config {
     /// left queued for the next start.
     #[arg(long, env = "WAVRAD_SHUTDOWN_GRACE", default_value = "10s", value_parser = parse_duration)]
     pub shutdown_grace: Duration,
+    /// Keep jobs, results and files in this PostgreSQL database (`postgres://user:password@host:port/db`)
+    /// instead of `data_dir`, shared with every other process given the same database.
+    #[arg(long, env = "WAVRAD_DATABASE_URL", value_parser = parse_database_url)]
+    pub database: Option<String>,
+    /// Most connections to the database at once.
+    #[arg(long, env = "WAVRAD_DATABASE_POOL", default_value_t = 8, value_parser = parse_pool_size)]
+    pub database_pool: usize,
+    /// With a database: how long a process's claim on a job holds without being renewed; a
+    /// job whose process died runs again elsewhere after this. At least four poll intervals.
+    #[arg(long, env = "WAVRAD_LEASE", default_value = "10s", value_parser = parse_positive_duration)]
+    pub lease: Duration,
+    /// With a database: how often an idle process looks for queued jobs, leases and progress
+    /// are written, and followed jobs (SSE) are read.
+    #[arg(long, env = "WAVRAD_POLL_INTERVAL", default_value = "250ms", value_parser = parse_positive_duration)]
+    pub poll_interval: Duration,
 }
 
 impl Config {
@@ -77,6 +92,17 @@ impl Config {
         } else {
             std::thread::available_parallelism().map_or(2, |n| n.get())
         }
+    }
+
+    /// Refuses settings that do not go together.
+    pub fn check(&self) -> Result<(), String> {
+        if self.database.is_some() && self.lease < self.poll_interval * 4 {
+            return Err(format!(
+                "--lease ({:?}) must be at least four times --poll-interval ({:?}): a lease is renewed every poll interval",
+                self.lease, self.poll_interval
+            ));
+        }
+        Ok(())
     }
 
     /// Every request is answered within this time (the synchronous render's limit plus slack).
@@ -119,6 +145,23 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
     Duration::try_from_secs_f64(seconds).map_err(|e| e.to_string())
 }
 
+/// A PostgreSQL connection URL: `postgres://` or `postgresql://`.
+pub fn parse_database_url(text: &str) -> Result<String, String> {
+    let text = text.trim();
+    if !(text.starts_with("postgres://") || text.starts_with("postgresql://")) {
+        return Err("give a PostgreSQL URL: postgres://user:password@host:port/database".into());
+    }
+    Ok(text.to_string())
+}
+
+/// A pool size: 1 to 1000 connections.
+pub fn parse_pool_size(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(n) if (1..=1000).contains(&n) => Ok(n),
+        _ => Err(format!("not a pool size from 1 to 1000: {text:?}")),
+    }
+}
+
 /// [`parse_duration`], refusing zero (a job timeout of zero would fail every job).
 pub fn parse_positive_duration(text: &str) -> Result<Duration, String> {
     let d = parse_duration(text)?;
@@ -153,6 +196,17 @@ mod tests {
             parse_positive_duration("1ms").unwrap(),
             Duration::from_millis(1)
         );
+    }
+
+    #[test]
+    fn database_settings_are_checked() {
+        assert!(parse_database_url("mysql://x").is_err());
+        assert!(parse_database_url("postgres://u@127.0.0.1/db").is_ok());
+        let mut c = Config::with_data_dir("/tmp/x");
+        c.database = Some("postgres://u@127.0.0.1/db".into());
+        assert!(c.check().is_ok());
+        c.lease = Duration::from_millis(500);
+        assert!(c.check().unwrap_err().contains("--lease"));
     }
 
     #[test]

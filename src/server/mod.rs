@@ -58,6 +58,36 @@ impl AppState {
         })
     }
 
+    /// [`AppState::start`], or with `config.database` the queue of that PostgreSQL database,
+    /// connected (and its schema migrated) first. Needs a multi-threaded tokio runtime.
+    pub async fn open(
+        config: Config,
+        solve: SolveFn,
+        shutdown: CancellationToken,
+    ) -> Result<AppState, store::StoreError> {
+        let Some(url) = config.database.clone() else {
+            return AppState::start(config, solve, shutdown);
+        };
+        config
+            .check()
+            .map_err(|e| store::StoreError::Io(std::io::Error::other(e)))?;
+        let store = store::postgres::Postgres::connect(&url, config.database_pool).await?;
+        let metrics = Arc::new(Metrics::default());
+        let queue = Queue::start_shared(
+            config.clone(),
+            solve,
+            metrics.clone(),
+            shutdown.clone(),
+            Arc::new(store),
+        )?;
+        Ok(AppState {
+            config: Arc::new(config),
+            queue,
+            metrics,
+            shutdown,
+        })
+    }
+
     /// With the real solver, [`crate::job::run`].
     pub fn with_core(
         config: Config,
@@ -122,7 +152,13 @@ pub async fn run(
 ) -> std::io::Result<()> {
     let token = CancellationToken::new();
     let grace = config.shutdown_grace;
-    let state = AppState::with_core(config, token.clone()).map_err(std::io::Error::other)?;
+    let state = AppState::open(
+        config,
+        Arc::new(|job, progress| crate::job::run(job, progress)),
+        token.clone(),
+    )
+    .await
+    .map_err(std::io::Error::other)?;
     run_with(listener, state, shutdown, grace).await
 }
 

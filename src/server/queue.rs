@@ -12,11 +12,14 @@
 //!
 //! Every state change is written to the [`Store`] before it is visible, so that after a crash
 //! or a restart finished jobs are still served and queued or running jobs run again.
+//!
+//! With a shared database (`--database`) the queue is the database's instead ([`shared`]):
+//! processes claim jobs from it under a lease, and every job's status is read from it.
 
 use super::config::Config;
 use super::metrics::{Metrics, StateLabel};
 use super::problem::Problem;
-use super::store::{Store, StoreError};
+use super::store::{embedded::Embedded, Record, Store, StoreError};
 use crate::job::{JobError, Outcome};
 use crate::progress::{Phase, Progress};
 use crate::scene::Job;
@@ -26,12 +29,14 @@ use serde_json::Value;
 use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, HashMap};
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use tokio::sync::{mpsc, watch, Notify};
 use tokio_util::sync::CancellationToken;
 use utoipa::ToSchema;
+
+mod shared;
 
 /// What solves a job: [`crate::job::run`] in production; tests substitute their own.
 pub type SolveFn = Arc<dyn Fn(&Job, &dyn Progress) -> Result<Outcome, JobError> + Send + Sync>;
@@ -174,17 +179,12 @@ pub struct JobStatus {
     pub links: Links,
 }
 
-/// What the store keeps per job.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-struct Record {
-    document: Value,
-    status: JobStatus,
-}
-
 /// Why a running solve is asked to stop.
 const GO_ON: u8 = 0;
 const CANCEL: u8 = 1;
 const SHUTDOWN: u8 = 2;
+/// With a shared database: the job is no longer this process's (deleted, or its lease lost).
+const LOST: u8 = 3;
 
 /// One job known to the server.
 pub struct Entry {
@@ -194,6 +194,8 @@ pub struct Entry {
     job: Option<Job>,
     status: watch::Sender<JobStatus>,
     stop: AtomicU8,
+    /// With a shared database: when the lease was last renewed (ms since the epoch).
+    renewed_ms: AtomicU64,
 }
 
 impl Entry {
@@ -261,7 +263,9 @@ pub enum Submitted {
 struct Inner {
     entries: Mutex<HashMap<String, Arc<Entry>>>,
     sender: mpsc::Sender<Arc<Entry>>,
-    store: Store,
+    store: Arc<dyn Store>,
+    /// With a shared database: what the processes share it with.
+    shared: Option<shared::Shared>,
     /// One pool per worker slot.
     pools: Vec<rayon::ThreadPool>,
     solve: SolveFn,
@@ -287,7 +291,44 @@ impl Queue {
         metrics: Arc<Metrics>,
         shutdown: CancellationToken,
     ) -> Result<Queue, StoreError> {
-        let store = Store::open(&config.data_dir)?;
+        let store = Arc::new(Embedded::open(&config.data_dir)?);
+        let (queue, receiver) = Queue::build(config, solve, metrics, store, None)?;
+        let requeue = queue.restore()?;
+        tokio::spawn(dispatch(queue.clone(), receiver, shutdown.clone()));
+        let sender = queue.inner.sender.clone();
+        tokio::spawn(async move {
+            for entry in requeue {
+                if sender.send(entry).await.is_err() {
+                    break;
+                }
+            }
+        });
+        tokio::spawn(janitor(queue.clone(), shutdown));
+        Ok(queue)
+    }
+
+    /// The queue of a store shared with other processes ([`shared`]): jobs are claimed from
+    /// `store` under a lease, statuses read from it. Needs a multi-threaded tokio runtime.
+    pub fn start_shared(
+        config: Config,
+        solve: SolveFn,
+        metrics: Arc<Metrics>,
+        shutdown: CancellationToken,
+        store: Arc<dyn Store>,
+    ) -> Result<Queue, StoreError> {
+        let shared = shared::Shared::new(&config);
+        let (queue, _) = Queue::build(config, solve, metrics, store, Some(shared))?;
+        shared::spawn(&queue, shutdown);
+        Ok(queue)
+    }
+
+    fn build(
+        config: Config,
+        solve: SolveFn,
+        metrics: Arc<Metrics>,
+        store: Arc<dyn Store>,
+        shared: Option<shared::Shared>,
+    ) -> Result<(Queue, mpsc::Receiver<Arc<Entry>>), StoreError> {
         let workers = config.worker_threads();
         let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
         let pools = (0..workers)
@@ -306,6 +347,7 @@ impl Queue {
                 entries: Mutex::new(HashMap::new()),
                 sender,
                 store,
+                shared,
                 pools,
                 solve,
                 config,
@@ -315,18 +357,7 @@ impl Queue {
                 idle: Notify::new(),
             }),
         };
-        let requeue = queue.restore()?;
-        tokio::spawn(dispatch(queue.clone(), receiver, shutdown.clone()));
-        let sender = queue.inner.sender.clone();
-        tokio::spawn(async move {
-            for entry in requeue {
-                if sender.send(entry).await.is_err() {
-                    break;
-                }
-            }
-        });
-        tokio::spawn(janitor(queue.clone(), shutdown));
-        Ok(queue)
+        Ok((queue, receiver))
     }
 
     /// Loads every record: finished ones as they are (unless expired), the others queued.
@@ -367,19 +398,17 @@ impl Queue {
                         tracing::warn!(id = %status.id, errors = p.errors.len(), "a restored job no longer validates");
                     }
                 }
-                inner.store.put_job(
-                    &status.id,
-                    &Record {
-                        document: document.clone(),
-                        status: status.clone(),
-                    },
-                )?;
+                inner.store.put_job(&Record {
+                    document: document.clone(),
+                    status: status.clone(),
+                })?;
             }
             let entry = Arc::new(Entry {
                 id: status.id.clone(),
                 document,
                 job,
                 stop: AtomicU8::new(GO_ON),
+                renewed_ms: AtomicU64::new(0),
                 status: watch::channel(status).0,
             });
             if entry.job.is_some() {
@@ -413,6 +442,9 @@ impl Queue {
     /// own result). Blocks on the store: call from a blocking context.
     pub fn submit(&self, document: Value, job: Job, durable: bool) -> Result<Submitted, Problem> {
         let inner = &self.inner;
+        if inner.shared.is_some() {
+            return self.submit_shared(document, job, durable);
+        }
         let id = job_id(&document);
         let mut entries = inner.entries.lock().expect("entries lock");
         if let Some(e) = entries.get(&id) {
@@ -428,33 +460,22 @@ impl Queue {
         if inner.sender.capacity() == 0 {
             return Err(queue_full(&inner.config));
         }
-        let names = job.surface_names();
-        let status = JobStatus {
-            id: id.clone(),
-            state: JobState::Queued,
-            scene: job.scene.name.clone(),
-            kind: job.scene.kind.name().to_string(),
-            created_ms: now_ms(),
-            started_ms: None,
-            finished_ms: None,
-            progress: queued(),
-            error: None,
-            links: Links::new(&id, &names),
-        };
+        let status = new_status(&id, &job);
         let record = Record {
             document: document.clone(),
             status: status.clone(),
         };
         if durable {
-            inner.store.put_job(&id, &record).map_err(internal)?;
+            inner.store.put_job(&record).map_err(internal)?;
         } else {
-            inner.store.put_job_lazily(&id, &record).map_err(internal)?;
+            inner.store.put_job_lazily(&record).map_err(internal)?;
         }
         let entry = Arc::new(Entry {
             id: id.clone(),
             document,
             job: Some(job),
             stop: AtomicU8::new(GO_ON),
+            renewed_ms: AtomicU64::new(0),
             status: watch::channel(status).0,
         });
         if inner.sender.try_send(entry.clone()).is_err() {
@@ -476,6 +497,29 @@ impl Queue {
     }
 
     /// Jobs, newest first.
+    /// A job, from whichever process solves it: [`Queue::get`], or with a shared database
+    /// the job's record there, its status followed while someone subscribes.
+    pub async fn find(&self, id: &str) -> Result<Option<Arc<Entry>>, Problem> {
+        if self.inner.shared.is_some() {
+            return self.find_shared(id).await;
+        }
+        Ok(self.get(id))
+    }
+
+    /// Jobs, newest first: [`Queue::list`], or with a shared database every process's.
+    pub async fn recent(&self, limit: usize) -> Result<Vec<JobStatus>, Problem> {
+        if self.inner.shared.is_some() {
+            let store = self.inner.store.clone();
+            return tokio::task::spawn_blocking(move || store.list(limit))
+                .await
+                .map_err(|e| Problem::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
+                .map_err(unavailable);
+        }
+        Ok(self.list(limit))
+    }
+
+    /// The jobs known to this process (with a shared database: those it is solving), newest
+    /// first.
     pub fn list(&self, limit: usize) -> Vec<JobStatus> {
         let mut all: Vec<JobStatus> = self
             .inner
@@ -497,6 +541,9 @@ impl Queue {
     /// Cancels a job (a running solve stops at its next check, well within a second) and
     /// forgets it. `false` when unknown. Blocks on the store.
     pub fn delete(&self, id: &str) -> Result<bool, StoreError> {
+        if self.inner.shared.is_some() {
+            return self.delete_shared(id);
+        }
         let Some(entry) = self.inner.entries.lock().expect("entries lock").remove(id) else {
             return Ok(false);
         };
@@ -519,6 +566,10 @@ impl Queue {
 
     /// Whether new jobs are taken (not shutting down, room in the queue).
     pub fn ready(&self) -> bool {
+        if let Some(shared) = &self.inner.shared {
+            return !self.inner.draining.load(Ordering::SeqCst)
+                && shared.ready(self.inner.config.queue_capacity);
+        }
         !self.inner.draining.load(Ordering::SeqCst) && self.inner.sender.capacity() > 0
     }
 
@@ -534,8 +585,21 @@ impl Queue {
         ] {
             counts.insert(s.as_str(), 0);
         }
-        for e in self.inner.entries.lock().expect("entries lock").values() {
-            *counts.entry(e.status.borrow().state.as_str()).or_default() += 1;
+        if let Some(shared) = &self.inner.shared {
+            let c = shared.counts();
+            for (state, n) in [
+                (JobState::Queued, c.queued),
+                (JobState::Running, c.running),
+                (JobState::Succeeded, c.succeeded),
+                (JobState::Failed, c.failed),
+                (JobState::Cancelled, c.cancelled),
+            ] {
+                counts.insert(state.as_str(), n as i64);
+            }
+        } else {
+            for e in self.inner.entries.lock().expect("entries lock").values() {
+                *counts.entry(e.status.borrow().state.as_str()).or_default() += 1;
+            }
         }
         let m = &self.inner.metrics;
         m.queue_depth.set(counts["queued"]);
@@ -585,13 +649,19 @@ impl Queue {
             return;
         };
         if entry.stop.load(Ordering::SeqCst) != GO_ON || inner.draining.load(Ordering::SeqCst) {
+            if inner.shared.is_some() {
+                self.finish_shared(&entry, SHUTDOWN, entry.status(), &[]);
+            }
             return;
         }
         inner.running.fetch_add(1, Ordering::SeqCst);
         let start = Instant::now();
         entry.status.send_modify(|s| {
+            if s.state != JobState::Running {
+                // (a job claimed from a shared store is running since its claim)
+                s.started_ms = Some(now_ms());
+            }
             s.state = JobState::Running;
-            s.started_ms = Some(now_ms());
             s.progress = ProgressInfo {
                 phase: "projection".into(),
                 fraction: 0.0,
@@ -638,7 +708,7 @@ impl Queue {
                 };
                 tracing::info!(id = %entry.id, seconds = start.elapsed().as_secs_f64(), "job succeeded");
             }
-            Ok(Err(JobError::Cancelled)) if stop == SHUTDOWN => {
+            Ok(Err(JobError::Cancelled)) if stop == SHUTDOWN || stop == LOST => {
                 status.state = JobState::Queued;
                 status.started_ms = None;
                 status.progress = queued();
@@ -685,7 +755,14 @@ impl Queue {
                 )
             }
         }
-        if entry.stop.load(Ordering::SeqCst) != CANCEL {
+        let stop = entry.stop.load(Ordering::SeqCst);
+        if inner.shared.is_some() {
+            let files: Vec<(String, &[u8])> = files
+                .iter()
+                .map(|(n, b)| (n.clone(), b.as_slice()))
+                .collect();
+            self.finish_shared(&entry, stop, status, &files);
+        } else if stop != CANCEL {
             let files: Vec<(String, &[u8])> = files
                 .iter()
                 .map(|(n, b)| (n.clone(), b.as_slice()))
@@ -702,7 +779,7 @@ impl Queue {
             document: entry.document.clone(),
             status,
         };
-        if let Err(e) = self.inner.store.put_finished(&entry.id, &record, files) {
+        if let Err(e) = self.inner.store.put_finished(&record, files) {
             tracing::error!(id = %entry.id, error = %e, "could not write the job to the store");
         }
         if entry.stop.load(Ordering::SeqCst) == CANCEL {
@@ -731,6 +808,22 @@ impl Queue {
     }
 }
 
+/// The status of a job just accepted.
+fn new_status(id: &str, job: &Job) -> JobStatus {
+    JobStatus {
+        id: id.to_string(),
+        state: JobState::Queued,
+        scene: job.scene.name.clone(),
+        kind: job.scene.kind.name().to_string(),
+        created_ms: now_ms(),
+        started_ms: None,
+        finished_ms: None,
+        progress: queued(),
+        error: None,
+        links: Links::new(id, &job.surface_names()),
+    }
+}
+
 fn queued() -> ProgressInfo {
     ProgressInfo {
         phase: "queued".into(),
@@ -748,6 +841,17 @@ fn queue_full(config: &Config) -> Problem {
     )
     .with_type("queue-full", "Queue full")
     .retry_after(5)
+}
+
+/// A store that does not answer (a shared database out of reach): 503, try again.
+fn unavailable(e: StoreError) -> Problem {
+    tracing::error!(error = %e, "store failure");
+    Problem::new(
+        StatusCode::SERVICE_UNAVAILABLE,
+        "the job store is out of reach; try again shortly",
+    )
+    .with_type("store-unavailable", "Store unavailable")
+    .retry_after(2)
 }
 
 fn internal(e: StoreError) -> Problem {

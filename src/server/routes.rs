@@ -131,10 +131,11 @@ async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> 
         .expect("a blocking task panicked")
 }
 
-fn entry(state: &AppState, id: &str) -> Result<Arc<Entry>, Problem> {
+async fn entry(state: &AppState, id: &str) -> Result<Arc<Entry>, Problem> {
     state
         .queue
-        .get(id)
+        .find(id)
+        .await?
         .ok_or_else(|| Problem::not_found(&format!("job {id}")))
 }
 
@@ -189,8 +190,10 @@ pub struct ListQuery {
 pub async fn list_jobs(
     State(state): State<AppState>,
     Query(q): Query<ListQuery>,
-) -> Json<Vec<JobStatus>> {
-    Json(state.queue.list(q.limit.unwrap_or(50).min(1000)))
+) -> Result<Json<Vec<JobStatus>>, Problem> {
+    Ok(Json(
+        state.queue.recent(q.limit.unwrap_or(50).min(1000)).await?,
+    ))
 }
 
 /// A job's status.
@@ -200,7 +203,7 @@ pub async fn job_status(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Json<JobStatus>, Problem> {
-    Ok(Json(entry(&state, &id)?.status()))
+    Ok(Json(entry(&state, &id).await?.status()))
 }
 
 /// Cancel a job (a running solve stops within a second) and forget it.
@@ -231,7 +234,7 @@ pub async fn job_events(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
-    let rx = entry(&state, &id)?.subscribe();
+    let rx = entry(&state, &id).await?.subscribe();
     let stream =
         futures_util::stream::unfold((rx, false, true), |(mut rx, ended, first)| async move {
             if ended || (!first && rx.changed().await.is_err()) {
@@ -252,8 +255,8 @@ pub async fn job_events(
 }
 
 /// 404 for an unknown job, 409 (with the job's state) until it has succeeded.
-fn finished(state: &AppState, id: &str) -> Result<JobStatus, Problem> {
-    let status = entry(state, id)?.status();
+async fn finished(state: &AppState, id: &str) -> Result<JobStatus, Problem> {
+    let status = entry(state, id).await?.status();
     match status.state {
         JobState::Succeeded => Ok(status),
         JobState::Failed => Err(Problem::new(
@@ -297,7 +300,7 @@ pub async fn job_result(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
-    finished(&state, &id)?;
+    finished(&state, &id).await?;
     let bytes = stored(&state, &id, "result.json").await?;
     Ok(([(header::CONTENT_TYPE, "application/json")], bytes).into_response())
 }
@@ -322,7 +325,7 @@ pub async fn job_artifact(
             "artifact {artifact} (image.png, sparsity.png, coefficients.png)"
         )));
     }
-    finished(&state, &id)?;
+    finished(&state, &id).await?;
     let bytes = stored(&state, &id, &artifact).await?;
     Ok(png(bytes, &headers))
 }
@@ -344,11 +347,11 @@ pub async fn job_surface(
             "surface image {file} (ask for <name>.png)"
         )));
     };
-    let status = entry(&state, &id)?.status();
+    let status = entry(&state, &id).await?.status();
     if !status.links.surfaces.contains_key(name) {
         return Err(Problem::not_found(&format!("surface {name} in job {id}")));
     }
-    finished(&state, &id)?;
+    finished(&state, &id).await?;
     let bytes = stored(&state, &id, &format!("surfaces/{name}.png")).await?;
     Ok(png(bytes, &headers))
 }
@@ -547,7 +550,7 @@ pub async fn readyz(State(state): State<AppState>) -> Result<&'static str, Probl
     } else {
         Err(Problem::new(
             StatusCode::SERVICE_UNAVAILABLE,
-            "not taking jobs (queue full or shutting down)",
+            "not taking jobs (queue full, job store out of reach, or shutting down)",
         )
         .retry_after(5))
     }
