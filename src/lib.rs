@@ -42,3 +42,4 @@ pub mod space;
 pub mod transfer;
 pub mod visibility;
 pub mod visibility3d;
+pub mod warnings;
