@@ -115,6 +115,7 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
         },
         timings_ms: sol.timings.clone(),
         hierarchical: sol.hierarchy.clone(),
+        warnings: crate::warnings::geometry(job),
     };
     progress.report(Phase::Metrics, 1.0);
     Ok(Outcome {

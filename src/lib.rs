@@ -31,3 +31,4 @@ pub mod result;
 pub mod scene;
 pub mod server;
 pub mod three_d;
+pub mod warnings;

@@ -1,8 +1,9 @@
-//! The result of a finished job (`spec/scene.md`, "What a finished job yields"), as serialised.
+//! The result of a finished job (`docs/job-document.md`, "What a finished job yields"), as serialised.
 
 use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct JobResult {
     /// The scene's name, when it has one.
     pub scene: Option<String>,
@@ -17,14 +18,28 @@ pub struct JobResult {
     /// Hierarchical method only: the size of the link structure.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub hierarchical: Option<HierarchyStats>,
+    /// Geometry that the format allows but that cannot be physically right (surfaces that
+    /// cross or overlap): the solve ran all the same. Empty when there is none.
+    #[serde(default)]
+    pub warnings: Vec<Warning>,
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// Something about the scene that the solve went ahead with but the author should know.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Warning {
+    /// The JSON paths of the surfaces involved (`/scene/surfaces/3`).
+    pub paths: Vec<String>,
+    pub message: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct SolverEcho {
     pub method: String,
     pub basis: String,
     pub order: usize,
     pub resolution: usize,
+    /// `"all"`, `{"top": N}`, `{"fraction": f}` or `{"threshold": t}`.
+    #[schema(value_type = Value)]
     pub keep: serde_json::Value,
     pub iteration: String,
     pub tolerance: f64,
@@ -33,7 +48,7 @@ pub struct SolverEcho {
     pub epsilon: f64,
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct SurfaceResult {
     pub name: String,
     /// Mean of B over the surface, per channel.
@@ -43,7 +58,7 @@ pub struct SurfaceResult {
     pub cells: Vec<[f64; 3]>,
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Coefficients {
     /// Unknowns of the linear system (per channel).
     pub basis_size: usize,
@@ -61,7 +76,7 @@ pub struct Coefficients {
     pub sorted_ranks: Vec<usize>,
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Metrics {
     /// Eq. (5) over the pairs of surfaces that do not touch.
     pub kernel_relative_error: Option<f64>,
@@ -86,7 +101,7 @@ pub struct Metrics {
 
 /// Power per channel: emitted, absorbed (∫ (1 − ρ) H over the surfaces, H the irradiance) and
 /// their ratio, which is 1 in a closed scene.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct EnergyBalance {
     pub emitted: [f64; 3],
     pub absorbed: [f64; 3],
@@ -94,7 +109,7 @@ pub struct EnergyBalance {
     pub balance: [f64; 3],
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct HierarchyStats {
     pub elements: usize,
     pub leaves: usize,

@@ -17,15 +17,27 @@ async function loadScenes() {
   await pickScene(names[0]);
 }
 
+// JSON numbers as written: where the browser can (JSON.rawJSON), a document parsed with
+// `asWritten` and serialised again keeps `555.0` as `555.0`, so that a changed control does
+// not change the document's other numbers (and its job id).
+const rawJSON = typeof JSON.rawJSON === "function" && typeof JSON.isRawJSON === "function";
+const asWritten = (text) => JSON.parse(text, (k, v, ctx) =>
+  (rawJSON && typeof v === "number" && ctx && typeof ctx.source === "string") ? JSON.rawJSON(ctx.source) : v);
+const value = (x) => (rawJSON && JSON.isRawJSON(x)) ? Number(x.rawJSON) : x;
+// A result with exact integers: an integer beyond 2^53 becomes a BigInt, not a rounded Number.
+const exact = (text) => JSON.parse(text, (k, v, ctx) =>
+  (typeof v === "number" && !Number.isSafeInteger(v) && ctx && /^-?[0-9]+$/.test(ctx.source || "")) ? BigInt(ctx.source) : v);
+
+const DEFAULTS = { method: "projection", basis: "wavelet", order: 1, resolution: 8 };
+
 async function pickScene(name) {
   if (!name) return;
-  const doc = await (await fetch(`/scenes/${name}.json`)).json();
-  $("doc").value = JSON.stringify(doc, null, 2);
+  // the document exactly as the file has it
+  const text = await (await fetch(`/scenes/${name}.json`)).text();
+  $("doc").value = text;
+  const doc = JSON.parse(text);
   const s = doc.solver || {};
-  $("method").value = s.method || "projection";
-  $("basis").value = s.basis || "wavelet";
-  $("order").value = s.order ?? 1;
-  $("resolution").value = s.resolution ?? 8;
+  for (const k of Object.keys(DEFAULTS)) $(k).value = s[k] ?? DEFAULTS[k];
   const keep = s.keep;
   if (!keep || keep === "all") { $("keep-kind").value = "all"; $("keep-value").value = ""; }
   else { const k = Object.keys(keep)[0]; $("keep-kind").value = k; $("keep-value").value = keep[k]; }
@@ -53,18 +65,36 @@ function showErrors(list) {
   }
 }
 
-function documentFromInputs() {
-  const doc = JSON.parse($("doc").value);
+// The text to send: the text area as written when the controls say what the document says
+// (a missing field and its default are the same); otherwise the document with the controls'
+// values, written back to the text area first so that what is sent is what is shown.
+function documentText() {
+  const text = $("doc").value;
+  const doc = asWritten(text);
   if (typeof doc !== "object" || doc === null || Array.isArray(doc)) throw new Error("the document must be a JSON object");
-  doc.solver = Object.assign({}, doc.solver);
-  doc.solver.method = $("method").value;
-  doc.solver.basis = $("basis").value;
-  doc.solver.order = Number($("order").value);
-  doc.solver.resolution = Number($("resolution").value);
+  const given = (doc.solver && typeof doc.solver === "object") ? doc.solver : {};
+  const solver = Object.assign({}, given);
+  const want = { method: $("method").value, basis: $("basis").value,
+    order: Number($("order").value), resolution: Number($("resolution").value) };
+  let changed = false;
+  for (const k of Object.keys(want)) {
+    const have = k in given ? value(given[k]) : DEFAULTS[k];
+    if (have !== want[k]) { solver[k] = want[k]; changed = true; }
+  }
+  const keep = given.keep;
+  const haveKind = (!keep || keep === "all") ? "all" : Object.keys(keep)[0];
+  const haveValue = haveKind === "all" ? null : value(keep[haveKind]);
   const kind = $("keep-kind").value;
-  if (kind === "all") delete doc.solver.keep;
-  else doc.solver.keep = { [kind]: Number($("keep-value").value) };
-  return doc;
+  const wantValue = kind === "all" ? null : Number($("keep-value").value);
+  if (kind !== haveKind || wantValue !== haveValue) {
+    if (kind === "all") delete solver.keep; else solver.keep = { [kind]: wantValue };
+    changed = true;
+  }
+  if (!changed) return text;
+  doc.solver = solver;
+  const out = JSON.stringify(doc, null, 2);
+  $("doc").value = out;
+  return out;
 }
 
 function showStatus(s) {
@@ -78,13 +108,13 @@ function showStatus(s) {
 
 async function submit() {
   clearErrors();
-  let doc;
-  try { doc = documentFromInputs(); }
+  let text;
+  try { text = documentText(); }
   catch (e) { showErrors([{ path: "", message: `not valid JSON: ${e.message}` }]); return; }
   $("submit").disabled = true;
   try {
     const res = await fetch("/api/v1/jobs", { method: "POST",
-      headers: { "Content-Type": "application/json" }, body: JSON.stringify(doc) });
+      headers: { "Content-Type": "application/json" }, body: text });
     const body = await res.json();
     if (!res.ok) {
       showErrors(body.errors && body.errors.length ? body.errors : [{ path: "", message: `${body.title}: ${body.detail}` }]);
@@ -98,6 +128,7 @@ function follow(status) {
   if (events) events.close();
   for (const id of ["image", "sparsity", "coefficients"]) $(id).removeAttribute("src");
   $("surfaces-body").innerHTML = ""; $("metrics").innerHTML = ""; $("result-link").hidden = true;
+  $("warnings").innerHTML = ""; $("warnings-panel").hidden = true;
   showStatus(status);
   if (status.state === "succeeded") { showResult(status); return; }
   events = new EventSource(status.links.events);
@@ -111,10 +142,31 @@ function follow(status) {
   });
 }
 
-const fmt = (x) => (x === null || x === undefined) ? "—" : (typeof x === "number" ? Number(x.toPrecision(6)).toString() : String(x));
+// Integers exactly (counts of entries, links, rays), other numbers to six digits.
+const fmt = (x) => {
+  if (x === null || x === undefined) return "—";
+  if (typeof x === "bigint") return x.toString();
+  if (typeof x === "number") return Number.isInteger(x) ? x.toString() : Number(x.toPrecision(6)).toString();
+  return String(x);
+};
+
+function showWarnings(list) {
+  const ul = $("warnings");
+  ul.innerHTML = "";
+  for (const w of list || []) {
+    const li = document.createElement("li");
+    for (const p of w.paths) {
+      const code = document.createElement("code"); code.textContent = p; li.append(code, " ");
+    }
+    li.append(w.message);
+    ul.appendChild(li);
+  }
+  $("warnings-panel").hidden = ul.children.length === 0;
+}
 
 async function showResult(status) {
-  const result = await (await fetch(status.links.result)).json();
+  const result = exact(await (await fetch(status.links.result)).text());
+  showWarnings(result.warnings);
   const body = $("surfaces-body");
   body.innerHTML = "";
   result.surfaces.forEach((s, i) => {
@@ -141,6 +193,11 @@ async function showResult(status) {
     ["basis size", c.basis_size], ["matrix entries", c.matrix_entries], ["kept entries", c.kept_entries],
     ["sparsity ratio", c.sparsity_ratio], ["total time (ms)", result.timings_ms.total],
   ];
+  if (m.kernel_evaluations !== undefined) rows.push(["kernel evaluations", m.kernel_evaluations]);
+  if (result.hierarchical) {
+    const h = result.hierarchical;
+    rows.push(["elements", h.elements], ["links", h.links], ["rays", h.rays]);
+  }
   const dl = $("metrics"); dl.innerHTML = "";
   for (const [k, v] of rows) {
     const dt = document.createElement("dt"); dt.textContent = k;

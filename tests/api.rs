@@ -1,4 +1,4 @@
-//! Every route and every error case of `spec/api.md`, through the router (`oneshot`).
+//! Every route and every error case of `docs/api.md`, through the router (`oneshot`).
 
 mod common;
 
@@ -683,11 +683,34 @@ async fn operations_routes() {
         "{schema}"
     );
     // only the scene is required, and no part may be null
-    let document = &api["components"]["schemas"]["JobDocument"];
+    let schemas = &api["components"]["schemas"];
+    let document = &schemas["JobDocument"];
     assert_eq!(document["required"], json!(["scene"]));
     for part in ["scene", "solver", "output"] {
-        let t = &document["properties"][part]["type"];
-        assert_eq!(t, &json!("object"), "{part}: {t}");
+        let r = document["properties"][part]["$ref"]
+            .as_str()
+            .unwrap_or_default();
+        let schema = &schemas[r.rsplit('/').next().unwrap()];
+        // an object, or one of several objects (the scene's kinds); never null
+        let kinds: Vec<&Value> = match schema["oneOf"].as_array() {
+            Some(alts) => alts.iter().map(|a| &a["type"]).collect(),
+            None => vec![&schema["type"]],
+        };
+        assert!(!kinds.is_empty(), "{part}: {schema}");
+        for t in kinds {
+            assert_eq!(t, &json!("object"), "{part}: {schema}");
+        }
+    }
+    // the result is described field by field, from the type it is serialised from
+    let result = &schemas["JobResult"];
+    for field in [
+        "surfaces",
+        "coefficients",
+        "metrics",
+        "timings_ms",
+        "warnings",
+    ] {
+        assert!(result["properties"][field].is_object(), "{field}: {result}");
     }
 
     let (st, h, b) = call(&router, get("/")).await;
@@ -742,6 +765,41 @@ async fn operations_routes() {
         let (st, _, b) = call(&router, get(&format!("/scenes/{name}.json"))).await;
         assert_eq!(st, StatusCode::OK, "{name}");
         assert_eq!(json(&b), scene(name));
+    }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn the_list_limit_says_what_is_allowed_and_when_it_was_capped() {
+    let (_dir, state, router) = setup(|_| {});
+    let (_, _, s) = submit(&router, &named("one")).await;
+    wait_until(&state, s["id"].as_str().unwrap(), |s| s.is_final()).await;
+    for bad in ["-1", "ten", "1.5", ""] {
+        let (st, h, b) = call(&router, get(&format!("/api/v1/jobs?limit={bad}"))).await;
+        assert_eq!(st, StatusCode::BAD_REQUEST, "limit={bad}");
+        assert_eq!(h[header::CONTENT_TYPE], "application/problem+json");
+        let p = json(&b);
+        let detail = p["detail"].as_str().unwrap();
+        assert!(
+            detail.starts_with("limit is a whole number from 0 to 1000"),
+            "{detail}"
+        );
+        assert!(detail.contains(&format!("found \"{bad}\"")), "{detail}");
+    }
+    let (st, h, b) = call(&router, get("/api/v1/jobs?limit=2000")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(h["limit-capped"], "2000; applied=1000");
+    assert_eq!(h[header::LINK], "</api/v1/jobs?limit=1000>; rel=\"self\"");
+    assert_eq!(json(&b).as_array().unwrap().len(), 1);
+    // within the limit: no such header
+    for ok in [
+        "/api/v1/jobs?limit=1000",
+        "/api/v1/jobs?limit=0",
+        "/api/v1/jobs",
+    ] {
+        let (st, h, _) = call(&router, get(ok)).await;
+        assert_eq!(st, StatusCode::OK, "{ok}");
+        assert!(h.get("limit-capped").is_none(), "{ok}");
+        assert!(h.get(header::LINK).is_none(), "{ok}");
     }
 }
 

@@ -1,6 +1,8 @@
 //! The web page in real headless Chromium, driven over WebDriver (Debian's chromedriver):
-//! load `/`, submit `flatland-parallel`, wait for the image, compare a shown number with the
-//! result JSON; show a validation error next to its input; fit a phone-width screen.
+//! load `/`, submit `flatland-parallel`, wait for the image, compare the shown numbers with the
+//! result JSON (integers exactly) and the job id with the file posted as written; show a
+//! validation error next to its input; show the geometry warnings of crossing segments; fit a
+//! phone-width screen.
 //! Without chromedriver the test fails when `CI` is set and is skipped otherwise.
 
 mod common;
@@ -254,12 +256,122 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         .await
         .unwrap();
     assert_eq!(iterations, result["metrics"]["iterations"].to_string());
+    // integers exactly as in the result, not rounded to six digits
+    for (id, value) in [
+        ("metric-basis-size", &result["coefficients"]["basis_size"]),
+        (
+            "metric-matrix-entries",
+            &result["coefficients"]["matrix_entries"],
+        ),
+        (
+            "metric-kept-entries",
+            &result["coefficients"]["kept_entries"],
+        ),
+    ] {
+        assert!(value.is_u64(), "{id}: {value}");
+        let shown = client
+            .find(Locator::Id(id))
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        assert_eq!(shown, value.to_string(), "{id}");
+    }
+    // the page sent the document as written (`"emission": 1.0` stays 1.0): the same job as
+    // the file posted as it is
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/flatland-parallel.json"
+    ))
+    .unwrap();
+    assert!(
+        text.contains("1.0"),
+        "the example writes a number with a fraction"
+    );
+    let posted: Value = reqwest::Client::new()
+        .post(format!("{base}/api/v1/jobs"))
+        .header("content-type", "application/json")
+        .body(text)
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(posted["id"].as_str(), Some(id.as_str()));
+    // no geometry warning for this scene
+    let hidden = client
+        .execute(
+            "return document.getElementById('warnings-panel').hidden",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(hidden.as_bool(), Some(true));
+    // the icon the page names is served
+    let icon = client
+        .execute(
+            "return document.querySelector(\"link[rel='icon']\").href",
+            vec![],
+        )
+        .await
+        .unwrap();
+    for url in [
+        icon.as_str().unwrap().to_string(),
+        format!("{base}/favicon.ico"),
+    ] {
+        let r = reqwest::get(&url).await.unwrap();
+        assert_eq!(r.status(), 200, "{url}");
+        assert_eq!(r.headers()["content-type"], "image/svg+xml", "{url}");
+    }
 
     if let Ok(dir) = std::env::var("WAVRAD_SCREENSHOT_DIR") {
         client.set_window_size(1200, 1600).await.unwrap();
         let png = client.screenshot().await.unwrap();
         std::fs::write(PathBuf::from(dir).join("desktop.png"), png).unwrap();
     }
+
+    // Crossing segments: solved, and the warning is shown with the surfaces' paths.
+    let crossing = json!({"scene": {"kind": "flatland", "name": "crossing", "surfaces": [
+        {"name": "a", "segment": [[0, 0], [1, 1]], "reflectance": 0.5, "emission": 1},
+        {"name": "b", "segment": [[0, 1], [1, 0]], "reflectance": 0.5}]}});
+    client
+        .execute(
+            "document.getElementById('doc').value = arguments[0]",
+            vec![Value::String(crossing.to_string())],
+        )
+        .await
+        .unwrap();
+    client
+        .find(Locator::Id("submit"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    let warning = client
+        .wait()
+        .at_most(Duration::from_secs(60))
+        .for_element(Locator::Css("#warnings li"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        warning.contains("/scene/surfaces/0") && warning.contains("/scene/surfaces/1"),
+        "{warning}"
+    );
+    assert!(warning.contains("cross"), "{warning}");
+    let hidden = client
+        .execute(
+            "return document.getElementById('warnings-panel').hidden",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(hidden.as_bool(), Some(false));
 
     // Phone width: nothing wider than the screen.
     client.set_window_size(390, 844).await.unwrap();

@@ -11,6 +11,8 @@ use std::time::{Duration, Instant};
 struct Server {
     child: Child,
     base: String,
+    /// What the server logged (stderr), read as it comes.
+    log: std::sync::Arc<std::sync::Mutex<String>>,
 }
 
 impl Drop for Server {
@@ -39,9 +41,19 @@ fn start_with(dir: &Path, extra: &[&str]) -> Server {
         .arg("--data-dir")
         .arg(dir)
         .stdout(Stdio::piped())
-        .stderr(Stdio::null())
+        .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    let log = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+    let stderr = child.stderr.take().unwrap();
+    let sink = log.clone();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            let mut log = sink.lock().unwrap();
+            log.push_str(&line);
+            log.push('\n');
+        }
+    });
     let mut line = String::new();
     BufReader::new(child.stdout.take().unwrap())
         .read_line(&mut line)
@@ -54,7 +66,11 @@ fn start_with(dir: &Path, extra: &[&str]) -> Server {
         .trim_end_matches('/')
         .to_string();
     assert!(url.starts_with("http://127.0.0.1:"), "{line}");
-    Server { child, base: url }
+    Server {
+        child,
+        base: url,
+        log,
+    }
 }
 
 fn doc(i: usize, resolution: usize) -> Value {
@@ -172,6 +188,22 @@ async fn survive(signal: &str) {
     let exit = server.child.wait().unwrap();
     if signal == "-TERM" {
         assert!(exit.success(), "a clean exit on SIGTERM: {exit:?}");
+        // it says that it stops, and what became of the running and the queued jobs
+        let deadline = Instant::now() + Duration::from_secs(5);
+        let said = |what: &str| server.log.lock().unwrap().contains(what);
+        while !said("shut down:") && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let log = server.log.lock().unwrap().clone();
+        assert!(
+            log.contains("shutting down: no new requests or jobs are taken"),
+            "{log}"
+        );
+        assert!(
+            log.contains("1 stopped and left queued for the next start")
+                && log.contains("queued job(s) kept"),
+            "{log}"
+        );
     }
     drop(server);
 

@@ -1,4 +1,4 @@
-//! The images of a finished job (`spec/scene.md`, "What a finished job yields"), as PNG bytes:
+//! The images of a finished job (`docs/job-document.md`, "What a finished job yields"), as PNG bytes:
 //! `image.png`, `sparsity.png`, `coefficients.png` and one `surfaces/<name>.png` per surface.
 //!
 //! Everything here is pure — a job and its outcome in, encoded bytes out, no file I/O — and
@@ -63,7 +63,7 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
     };
     let sparsity = || {
         encode_png(&match &outcome.picture {
-            Some(p) => plot::sparsity(p),
+            Some(p) => plot::sparsity(p, &names),
             None => plot::message(
                 640,
                 560,
@@ -124,6 +124,11 @@ fn surface_range(f: &Field) -> (f64, f64) {
     }
     if !(hi > 0.0 && hi.is_finite()) {
         return (0.0, 1.0);
+    }
+    // a uniform surface (a light that reflects nothing): at the middle of its scale, not at
+    // white on the white page
+    if hi - lo <= 1e-9 * hi {
+        return (0.0, 2.0 * hi);
     }
     if lo > 0.5 * hi && hi > lo {
         (lo, hi)
@@ -210,8 +215,9 @@ mod tests {
             cut: 1e-3,
             links: false,
         };
-        let s = plot::sparsity(&p);
-        assert_eq!(encode_png(&s), encode_png(&plot::sparsity(&p)));
+        let names = ["a".to_string(), "b".to_string()];
+        let s = plot::sparsity(&p, &names);
+        assert_eq!(encode_png(&s), encode_png(&plot::sparsity(&p, &names)));
         // Entries below the cut are white; the largest is the top of the colour map.
         let colors: std::collections::HashSet<[u8; 3]> = s.pixels().map(|p| p.0).collect();
         let top = plot::viridis(1.0);

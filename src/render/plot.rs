@@ -220,6 +220,15 @@ pub fn surface(title: &str, f: &Field, range: (f64, f64)) -> RgbImage {
     let square = f.dims == 2;
     let (lo, hi) = range;
     let tone = |v: [f64; 3]| super::tone(v.map(|x| x - lo), hi - lo);
+    // the colour bar in the surface's own colour: the colour of a point whose B is the bar's
+    // value times the hue of the surface's mean (grey for a grey surface)
+    let mean = f.mean();
+    let top = mean.iter().cloned().fold(0.0f64, f64::max);
+    let hue = if top > 0.0 && top.is_finite() {
+        mean.map(|m| (m / top).max(0.0))
+    } else {
+        [1.0; 3]
+    };
     let (w, h) = if square { (440u32, 360u32) } else { (660, 150) };
     let (mut img, (xr, yr)) = canvas(w, h, |root| {
         root.fill(&WHITE)?;
@@ -264,9 +273,13 @@ pub fn surface(title: &str, f: &Field, range: (f64, f64)) -> RgbImage {
         bar.draw_series((0..steps).map(|i| {
             let a = lo + (hi - lo) * i as f64 / steps as f64;
             let b = lo + (hi - lo) * (i + 1) as f64 / steps as f64;
-            let g = tone([(a + b) / 2.0; 3]).0;
+            let g = tone(hue.map(|c| c * (a + b) / 2.0)).0;
             Rectangle::new([(0.0, a), (1.0, b)], RGBColor(g[0], g[1], g[2]).filled())
         }))?;
+        bar.plotting_area().draw(&Rectangle::new(
+            [(0.0, lo), (1.0, hi)],
+            BLACK.stroke_width(1),
+        ))?;
         Ok(range)
     });
     let (x0, y0, pw, ph) = area_pixels(&xr, &yr);
@@ -278,7 +291,32 @@ pub fn surface(title: &str, f: &Field, range: (f64, f64)) -> RgbImage {
             img.put_pixel(x0 + px, y0 + py, tone(b));
         }
     }
+    frame(&mut img, x0, y0, pw, ph);
     img
+}
+
+/// The colour of the frame around a surface's map: a dark slate that no grey of the map or
+/// of the text has.
+const FRAME: RGBColor = RGBColor(60, 64, 72);
+
+/// A one-pixel frame just outside the `pw × ph` area at (x0, y0): a surface as bright as the
+/// page (a light at the top of its scale) still shows where it is.
+fn frame(img: &mut RgbImage, x0: u32, y0: u32, pw: u32, ph: u32) {
+    let (w, h) = img.dimensions();
+    if w == 0 || h == 0 {
+        return;
+    }
+    let c = image::Rgb([FRAME.0, FRAME.1, FRAME.2]);
+    let (left, top) = (x0.saturating_sub(1), y0.saturating_sub(1));
+    let (right, bottom) = ((x0 + pw).min(w - 1), (y0 + ph).min(h - 1));
+    for x in left..=right {
+        img.put_pixel(x, top, c);
+        img.put_pixel(x, bottom, c);
+    }
+    for y in top..=bottom {
+        img.put_pixel(left, y, c);
+        img.put_pixel(right, y, c);
+    }
 }
 
 /// Writes `text` in the lower left corner of a rendered image, white on a dark band (the
@@ -477,10 +515,34 @@ fn log_range(values: &[f64]) -> (f64, f64) {
 
 /// `sparsity.png`: |K| per entry (the largest in each block when the matrix is larger than the
 /// picture), on a log colour scale with a colour bar; entries dropped by thresholding are white.
-pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
+pub fn sparsity(p: &MagnitudePicture, surfaces: &[String]) -> RgbImage {
     let (w, h) = (640u32, 560u32);
     let (lo, hi) = log_range(&p.values);
     let n = (p.side * p.block) as f64;
+    // the rows and columns come surface by surface, as many for each: the axes name the
+    // surfaces at the middle of their blocks (numbers when there are too many to read)
+    let k = surfaces.len();
+    let named = (2..=24).contains(&k);
+    let fit = |i: usize, chars: usize| -> String {
+        let name = &surfaces[i.min(k.saturating_sub(1))];
+        if name.chars().count() <= chars {
+            name.clone()
+        } else {
+            let cut: String = name.chars().take(chars.saturating_sub(1)).collect();
+            format!("{cut}…")
+        }
+    };
+    // about 6.5 pixels a character at 11 points; the y axis has 100 pixels for its names
+    let x_chars = ((480.0 / k.max(1) as f64) / 6.5).floor().max(3.0) as usize;
+    // one segment per surface; the y axis counts upwards, the rows downwards
+    let x_name = |v: &SegmentValue<i32>| match v {
+        SegmentValue::CenterOf(i) => fit(*i as usize, x_chars),
+        _ => String::new(),
+    };
+    let y_name = |v: &SegmentValue<i32>| match v {
+        SegmentValue::CenterOf(i) => fit(k - 1 - (*i as usize).min(k - 1), 14),
+        _ => String::new(),
+    };
     let (mut img, (xr, yr)) = canvas(w, h, |root| {
         root.fill(&WHITE)?;
         let (title, rows, columns, bar_desc) = if p.links {
@@ -498,23 +560,55 @@ pub fn sparsity(p: &MagnitudePicture) -> RgbImage {
                 "|K| (log scale)",
             )
         };
+        let (rows, columns) = if named {
+            if p.links {
+                ("receiver: finest cells, by surface", "source: by surface")
+            } else {
+                ("row i: receiving surface", "column j: source surface")
+            }
+        } else {
+            (rows, columns)
+        };
         let root = root.titled(title, (SANS, 18))?;
         let (left, right) = root.split_horizontally(w - 110);
-        let mut chart = ChartBuilder::on(&left)
-            .margin(10)
-            .x_label_area_size(36)
-            .y_label_area_size(50)
-            .build_cartesian_2d(0f64..n, n..0f64)?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .label_style((SANS, 11))
-            .x_desc(columns)
-            .y_desc(rows)
-            .x_label_formatter(&|v| format!("{v:.0}"))
-            .y_label_formatter(&|v| format!("{v:.0}"))
-            .draw()?;
-        let range = chart.plotting_area().get_pixel_range();
+        let range = if named {
+            let mut chart = ChartBuilder::on(&left)
+                .margin(10)
+                .x_label_area_size(36)
+                .y_label_area_size(100)
+                .build_cartesian_2d(
+                    (0..k as i32 - 1).into_segmented(),
+                    (0..k as i32 - 1).into_segmented(),
+                )?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .label_style((SANS, 11))
+                .x_labels(k)
+                .y_labels(k)
+                .x_desc(columns)
+                .y_desc(rows)
+                .x_label_formatter(&x_name)
+                .y_label_formatter(&y_name)
+                .draw()?;
+            chart.plotting_area().get_pixel_range()
+        } else {
+            let mut chart = ChartBuilder::on(&left)
+                .margin(10)
+                .x_label_area_size(36)
+                .y_label_area_size(50)
+                .build_cartesian_2d(0f64..n, n..0f64)?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .label_style((SANS, 11))
+                .x_desc(columns)
+                .y_desc(rows)
+                .x_label_formatter(&|v| format!("{v:.0}"))
+                .y_label_formatter(&|v| format!("{v:.0}"))
+                .draw()?;
+            chart.plotting_area().get_pixel_range()
+        };
         let mut bar = ChartBuilder::on(&right)
             .margin_top(10)
             .margin_bottom(46)
@@ -606,6 +700,9 @@ pub fn coefficients(c: &Coefficients) -> RgbImage {
         let mut chart = ChartBuilder::on(root)
             .caption("Sorted kernel coefficient magnitudes", (SANS, 18))
             .margin(10)
+            // the last rank's label is centred on the right edge of the plot: room for half
+            // of "1000000"
+            .margin_right(32)
             .x_label_area_size(40)
             .y_label_area_size(70)
             .build_cartesian_2d(0f64..x_max, (lo..hi).log_scale())?;

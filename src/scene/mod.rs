@@ -1,10 +1,11 @@
-//! The job document of `spec/scene.md`, in two stages: [`parse`] walks the raw JSON value and
+//! The job document of `docs/job-document.md`, in two stages: [`parse`] walks the raw JSON value and
 //! collects every error with its JSON path, and returns the validated types below, in which every
 //! default of the spec is applied and every invariant holds.
 
 mod expr;
 mod parse;
 mod repeated;
+pub mod schema;
 mod walk;
 
 pub use expr::{Expr, ExprError};

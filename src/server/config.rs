@@ -1,4 +1,4 @@
-//! The server's configuration: every limit of `spec/api.md` as a command-line flag with a
+//! The server's configuration: every limit of `docs/api.md` as a command-line flag with a
 //! `WAVRAD_`-prefixed environment variable and a safe default.
 
 use crate::scene::Limits;

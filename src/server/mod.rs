@@ -1,4 +1,4 @@
-//! The render service: the HTTP API of `spec/api.md` over the numerical core.
+//! The render service: the HTTP API of `docs/api.md` over the numerical core.
 //!
 //! [`app`] builds the router (tested with `oneshot`), [`run`] serves it on a listener until a
 //! shutdown signal. Only this module knows HTTP, tokio or transfer types; the core stays pure.
@@ -188,16 +188,17 @@ pub async fn run_with(
         .with_graceful_shutdown(token.clone().cancelled_owned())
         .into_future(),
     );
+    // the server's future ends at once when no connection is open, so both arms can be the
+    // first to see the signal: both drain the queue the same way
     tokio::select! {
         _ = token.cancelled() => {}
         ended = &mut server => {
             token.cancel();
-            queue.shutdown(grace).await;
+            drain(&queue, grace).await;
             return ended.map_err(std::io::Error::other)?;
         }
     }
-    tracing::info!("shutting down");
-    queue.shutdown(grace).await;
+    drain(&queue, grace).await;
     match tokio::time::timeout(Duration::from_secs(5), server).await {
         Ok(Ok(result)) => result,
         Ok(Err(join)) => Err(std::io::Error::other(join)),
@@ -206,4 +207,39 @@ pub async fn run_with(
             Ok(())
         }
     }
+}
+
+/// Stops the queue on shutdown and says so: what was running and queued, and after the grace
+/// period, what became of the running jobs.
+async fn drain(queue: &queue::Queue, grace: Duration) {
+    let jobs = queue.list(usize::MAX);
+    let running: Vec<String> = jobs
+        .iter()
+        .filter(|s| s.state == queue::JobState::Running)
+        .map(|s| s.id.clone())
+        .collect();
+    let queued = jobs
+        .iter()
+        .filter(|s| s.state == queue::JobState::Queued)
+        .count();
+    tracing::info!(
+        running = running.len(),
+        queued,
+        grace_seconds = grace.as_secs_f64(),
+        "shutting down: no new requests or jobs are taken; running solves may finish within the grace period, queued jobs stay queued for the next start"
+    );
+    queue.shutdown(grace).await;
+    let (mut finished, mut stopped) = (0, 0);
+    for id in &running {
+        match queue.get(id).map(|e| e.status().state) {
+            Some(s) if s.is_final() => finished += 1,
+            _ => stopped += 1,
+        }
+    }
+    tracing::info!(
+        finished,
+        stopped,
+        queued,
+        "shut down: {finished} running job(s) finished, {stopped} stopped and left queued for the next start, {queued} queued job(s) kept"
+    );
 }

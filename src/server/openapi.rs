@@ -4,44 +4,20 @@
 use super::problem::{PathError, Problem};
 use super::queue::{JobFailure, JobState, JobStatus, Links, ProgressInfo};
 use super::routes;
-use serde::Serialize;
 use utoipa::{OpenApi, ToSchema};
 
-/// A job document (`spec/scene.md`): `scene` is required, `solver` and `output` optional.
-/// Neither of the optional parts may be `null`.
-#[derive(Serialize, ToSchema)]
-pub struct JobDocument {
-    #[schema(value_type = Object)]
-    pub scene: serde_json::Value,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Object)]
-    pub solver: Option<serde_json::Value>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Object)]
-    pub output: Option<serde_json::Value>,
-}
+/// The job document (`docs/job-document.md`), from the types that describe what the parser
+/// accepts.
+pub type JobDocument = crate::scene::schema::Document;
 
 /// A PNG image (binary).
 #[derive(ToSchema)]
 #[schema(value_type = String, format = Binary)]
 pub struct Png(pub Vec<u8>);
 
-/// The result of a job (`spec/scene.md`, "What a finished job yields").
-#[derive(Serialize, ToSchema)]
-pub struct ResultDocument {
-    pub scene: Option<String>,
-    pub kind: String,
-    #[schema(value_type = Object)]
-    pub solver: serde_json::Value,
-    #[schema(value_type = Vec<Object>)]
-    pub surfaces: Vec<serde_json::Value>,
-    #[schema(value_type = Object)]
-    pub coefficients: serde_json::Value,
-    #[schema(value_type = Object)]
-    pub metrics: serde_json::Value,
-    #[schema(value_type = Object)]
-    pub timings_ms: serde_json::Value,
-}
+/// The result of a job (`docs/job-document.md`, "What a finished job yields"): the type it is
+/// serialised from.
+pub type ResultDocument = crate::result::JobResult;
 
 #[derive(OpenApi)]
 #[openapi(

@@ -1,4 +1,4 @@
-//! The handlers of `spec/api.md`, one per route, and the reading of a job document from a
+//! The handlers of `docs/api.md`, one per route, and the reading of a job document from a
 //! request (content type → size → UTF-8 → JSON → document), each failure its own status.
 
 use super::problem::Problem;
@@ -31,6 +31,11 @@ pub fn router(state: AppState) -> Router {
         .route("/api/v1/openapi.json", get(openapi))
         .route("/", get(index))
         .route("/static/{file}", get(static_file))
+        // browsers ask for it whatever the page says
+        .route(
+            "/favicon.ico",
+            get(|| static_file(Path("favicon.svg".to_string()))),
+        )
         .route("/scenes/{file}", get(scene_file));
     counted(router, &state)
         .fallback(|| async { Problem::new(StatusCode::NOT_FOUND, "no such route") })
@@ -177,23 +182,58 @@ pub async fn create_job(
     Ok((status, [(header::LOCATION, location)], Json(job)).into_response())
 }
 
+/// The most jobs one list answers; a larger `limit` is capped to it.
+pub const MAX_LIST: u64 = 1000;
+
 #[derive(Debug, Deserialize, utoipa::IntoParams)]
 #[into_params(parameter_in = Query)]
 pub struct ListQuery {
-    /// At most this many (default 50, at most 1000).
-    limit: Option<usize>,
+    /// At most this many: a whole number from 0 to 1000, default 50. A larger number is
+    /// answered with at most 1000 jobs and says so in the `Limit-Capped` and `Link` headers.
+    #[param(value_type = Option<u64>, minimum = 0)]
+    limit: Option<String>,
 }
 
 /// Recent jobs, newest first.
 #[utoipa::path(get, path = "/api/v1/jobs", tag = "jobs", params(ListQuery),
-    responses((status = 200, body = Vec<JobStatus>)))]
+    responses(
+        (status = 200, body = Vec<JobStatus>, headers(
+            ("Limit-Capped" = String, description = "only when `limit` was above 1000: the limit asked for and the one applied, e.g. `2000; applied=1000`"),
+            ("Link" = String, description = "only when `limit` was capped: the list's own URI with the limit applied, `rel=\"self\"`"),
+        )),
+        (status = 400, description = "`limit` is not a whole number from 0 up", body = Problem, content_type = "application/problem+json"),
+    ))]
 pub async fn list_jobs(
     State(state): State<AppState>,
     Query(q): Query<ListQuery>,
-) -> Result<Json<Vec<JobStatus>>, Problem> {
-    Ok(Json(
-        state.queue.recent(q.limit.unwrap_or(50).min(1000)).await?,
-    ))
+) -> Result<Response, Problem> {
+    let asked = match q.limit.as_deref() {
+        None => 50,
+        Some(text) => text.trim().parse::<u64>().map_err(|_| {
+            Problem::new(
+                StatusCode::BAD_REQUEST,
+                format!(
+                    "limit is a whole number from 0 to {MAX_LIST} (default 50; a larger one is capped to {MAX_LIST}); found \"{text}\""
+                ),
+            )
+            .with_type("invalid-parameter", "Invalid query parameter")
+        })?,
+    };
+    let applied = asked.min(MAX_LIST);
+    let list = Json(state.queue.recent(applied as usize).await?);
+    if asked > applied {
+        let capped = format!("{asked}; applied={applied}");
+        let link = format!("</api/v1/jobs?limit={applied}>; rel=\"self\"");
+        let headers = [
+            (
+                header::HeaderName::from_static("limit-capped"),
+                HeaderValue::from_str(&capped).expect("ASCII"),
+            ),
+            (header::LINK, HeaderValue::from_str(&link).expect("ASCII")),
+        ];
+        return Ok((headers, list).into_response());
+    }
+    Ok(list.into_response())
 }
 
 /// A job's status.
@@ -485,7 +525,7 @@ pub async fn render_now(
 /// Whether an `Accept` header asks for the result JSON rather than the PNG (RFC 9110 §12.5.1):
 /// each type gets the quality of the most specific range that matches it (`*/*`, `image/*`,
 /// `image/png`; q = 1 unless given), and JSON wins only with the higher one, so that the PNG
-/// stays the default, as `spec/api.md` has it. Written out because only these two types are
+/// stays the default, as `docs/api.md` has it. Written out because only these two types are
 /// offered; a negotiation crate would bring a media-type parser for that.
 fn prefers_json(accept: &str) -> bool {
     let quality = |kind: &str, sub: &str| {
@@ -590,6 +630,7 @@ async fn static_file(Path(file): Path<String>) -> Result<Response, Problem> {
             include_str!("../../static/style.css"),
             "text/css; charset=utf-8",
         ),
+        "favicon.svg" => (include_str!("../../static/favicon.svg"), "image/svg+xml"),
         _ => return Err(Problem::not_found(&format!("static file {file}"))),
     };
     Ok((

@@ -1,4 +1,4 @@
-//! Points, vectors and parallelograms of 3D scenes (`spec/scene.md`, kind `3d`):
+//! Points, vectors and parallelograms of 3D scenes (`docs/job-document.md`, kind `3d`):
 //! p(s, t) = p0 + s (p1 − p0) + t (p3 − p0), front normal normalize((p1 − p0) × (p3 − p0)),
 //! and the distances between pieces of them that the integrators and the visibility tests need.
 //! The r and cos θ of the kernel, the slides' eq. (3), are measured with these.
