@@ -28,9 +28,10 @@ fn errors(v: &jsonschema::Validator, doc: &Value) -> Vec<String> {
 }
 
 fn examples() -> Vec<(String, Value)> {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
-    let mut out: Vec<(String, Value)> = std::fs::read_dir(dir)
-        .unwrap()
+    let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    let mut out: Vec<(String, Value)> = [scenes.to_string(), format!("{scenes}/gallery")]
+        .into_iter()
+        .flat_map(|dir| std::fs::read_dir(dir).unwrap())
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "json"))
         .map(|p| {

@@ -179,9 +179,13 @@ fn a_box_of_walls_that_meet_at_their_edges_is_not_a_warning() {
 
 #[test]
 fn no_example_scene_has_a_warning() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let path = entry.unwrap().path();
+    let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    let files = [scenes.to_string(), format!("{scenes}/gallery")]
+        .into_iter()
+        .flat_map(|dir| std::fs::read_dir(dir).unwrap())
+        .map(|entry| entry.unwrap().path())
+        .filter(|path| path.extension().is_some_and(|x| x == "json"));
+    for path in files {
         let doc: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
         let w = warnings(&doc);
         assert!(w.is_empty(), "{}: {w:?}", path.display());
