@@ -61,6 +61,9 @@ fn document(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Job> {
     if let (Some(shape), Some(s), Some(o)) = (Shape::of(root, limits), &solver, &output) {
         cross_checks(w, &shape, &s.value, &o.value, limits);
     }
+    if let (Some(scene), Some(s)) = (&scene, &solver) {
+        finest_elements(w, scene, &s.value, limits);
+    }
     let scene = scene?;
     let mut output = output?.ok()?;
     // scene.md: a fredholm equation's `exact` solution, when given, is what the error
@@ -75,6 +78,31 @@ fn document(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Job> {
         solver: solver?.ok()?,
         output,
     })
+}
+
+/// `min_element_size` may not ask for more elements along a surface's side than
+/// `max_resolution` allows (the default, a 64th of the scene's diagonal, never does).
+fn finest_elements(w: &mut Walker, scene: &Scene, solver: &Solver, limits: &Limits) {
+    let (SceneKind::ThreeD(quads), Some(size)) = (&scene.kind, solver.min_element_size) else {
+        return;
+    };
+    let side = |a: [f64; 3], b: [f64; 3]| {
+        ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt()
+    };
+    let longest = quads
+        .iter()
+        .map(|q| side(q.corners[0], q.corners[1]).max(side(q.corners[0], q.corners[3])))
+        .fold(0.0, f64::max);
+    let per_side = longest / size;
+    if per_side > limits.max_resolution as f64 {
+        w.error(
+            "/solver/min_element_size",
+            format!(
+                "{size} would split the longest side ({longest}) into {per_side:.0} elements, more than max_resolution ({})",
+                limits.max_resolution
+            ),
+        );
+    }
 }
 
 /// A part of the document as far as it parsed: its invalid fields hold their defaults (their
@@ -1208,6 +1236,9 @@ mod tests {
             let solver = json!({"method": "hierarchical", "min_element_size": bad});
             assert_eq!(errors(doc(solver)), ["/solver/min_element_size"]);
         }
+        // no finer than max_resolution elements along the longest side (1 here)
+        let fine = json!({"method": "hierarchical", "min_element_size": 0.0001});
+        assert_eq!(errors(doc(fine)), ["/solver/min_element_size"]);
         // the projection method and flatland are sized by resolution
         let projection = json!({"method": "projection", "min_element_size": 0.25});
         assert_eq!(errors(doc(projection)), ["/solver/min_element_size"]);
