@@ -8,8 +8,10 @@
 //! `cargo bench --bench shared`; `WAVRAD_BENCH_LEASE` and `WAVRAD_BENCH_POLL` (default 10s and
 //! 250ms, the server's defaults) set the processes' lease and poll interval.
 
+#[path = "../tests/listening/mod.rs"]
+mod listening;
+
 use serde_json::{json, Value};
-use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -41,17 +43,7 @@ fn start(database: Option<&str>, dir: &std::path::Path, workers: usize) -> Serve
         cmd.args(["--database", url]);
     }
     let mut child = cmd.spawn().unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let base = line
-        .trim()
-        .rsplit(' ')
-        .next()
-        .unwrap()
-        .trim_end_matches('/')
-        .to_string();
+    let base = listening::base_url(&mut child);
     Server { child, base }
 }
 

@@ -2,6 +2,8 @@
 //! killed (SIGKILL) or stopped (SIGTERM), started again on the same data_dir, and every job
 //! completes; a result finished before the stop is served unchanged after it.
 
+mod listening;
+
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -54,18 +56,7 @@ fn start_with(dir: &Path, extra: &[&str]) -> Server {
             log.push('\n');
         }
     });
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let url = line
-        .trim()
-        .rsplit(' ')
-        .next()
-        .unwrap()
-        .trim_end_matches('/')
-        .to_string();
-    assert!(url.starts_with("http://127.0.0.1:"), "{line}");
+    let url = listening::base_url(&mut child);
     Server {
         child,
         base: url,

@@ -5,6 +5,7 @@
 //! document posted to two processes at once making one job.
 
 mod cluster;
+mod listening;
 mod postgres;
 
 use cluster::{bytes, long, owner_pid, post, small, start, status, wait_for};

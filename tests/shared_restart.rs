@@ -5,6 +5,7 @@
 //! that the other PostgreSQL tests use.
 
 mod cluster;
+mod listening;
 mod postgres;
 
 use cluster::{long, post, small, start, wait_for};
