@@ -72,15 +72,25 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
     progress.report(Phase::Metrics, 0.0);
     let rho = reflectances(job);
     let energy = metrics::energy(&sol.emission, &sol.irradiance, &rho, &measure);
-    let surfaces = names
-        .iter()
-        .zip(&sol.fields)
-        .map(|(name, f)| SurfaceResult {
-            name: name.clone(),
-            mean: f.mean(),
-            cells: f.cell_means(job.output.grid),
-        })
-        .collect();
+    let surfaces = match &job.scene.kind {
+        SceneKind::ThreeD(d) if !d.parallelograms_only() => surfaces_of_patches(
+            d,
+            &sol.fields,
+            &measure,
+            job.output.grid,
+            job.output.vertices,
+        ),
+        _ => names
+            .iter()
+            .zip(&sol.fields)
+            .map(|(name, f)| SurfaceResult {
+                name: name.clone(),
+                mean: f.mean(),
+                cells: f.cell_means(job.output.grid),
+                vertices: None,
+            })
+            .collect(),
+    };
     let (sorted_ranks, sorted_magnitudes) = sol.magnitudes.iter().copied().unzip();
     sol.timings.insert("total".into(), ms(start));
     let result = JobResult {
@@ -123,6 +133,77 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
         fields: sol.shown.unwrap_or(sol.fields),
         picture: sol.picture,
     })
+}
+
+/// The results of a 3D scene's surfaces from its patches' fields: a parallelogram's as its
+/// patch's; a triangle's or a mesh's mean weighted by the triangles' areas, one cell per
+/// triangle, and with `vertices` B at each position averaged over the triangles that meet
+/// there (scene.md).
+fn surfaces_of_patches(
+    d: &crate::scene::ThreeD,
+    fields: &[Field],
+    area: &[f64],
+    grid: usize,
+    vertices: bool,
+) -> Vec<SurfaceResult> {
+    use crate::scene::Shape3;
+    d.surfaces
+        .iter()
+        .map(|s| {
+            let patches = s.patches.clone();
+            let total: f64 = area[patches.clone()].iter().sum();
+            let mut mean = [0.0; 3];
+            let cells: Vec<Rgb> = patches.clone().map(|i| fields[i].mean()).collect();
+            for (c, a) in cells.iter().zip(&area[patches.clone()]) {
+                (0..3).for_each(|ch| mean[ch] += c[ch] * a / total);
+            }
+            // B at the corners (0,0), (1,0), (0,1) of each triangle, summed per position
+            let corners = |i: usize| {
+                let f = &fields[i];
+                [f.eval(0.0, 0.0), f.eval(1.0, 0.0), f.eval(0.0, 1.0)]
+            };
+            let at_positions = match (&s.shape, vertices) {
+                (Shape3::Triangle, true) => Some(corners(patches.start).to_vec()),
+                (
+                    Shape3::Mesh {
+                        positions,
+                        triangles,
+                    },
+                    true,
+                ) => {
+                    let mut sum = vec![[0.0; 3]; positions.len()];
+                    let mut count = vec![0usize; positions.len()];
+                    for (t, i) in triangles.iter().zip(patches.clone()) {
+                        for (&p, v) in t.iter().zip(corners(i)) {
+                            (0..3).for_each(|ch| sum[p][ch] += v[ch]);
+                            count[p] += 1;
+                        }
+                    }
+                    Some(
+                        sum.iter()
+                            .zip(&count)
+                            .map(|(v, &n)| v.map(|x| x / n.max(1) as f64))
+                            .collect(),
+                    )
+                }
+                _ => None,
+            };
+            match s.shape {
+                Shape3::Parallelogram => SurfaceResult {
+                    name: s.name.clone(),
+                    mean: fields[patches.start].mean(),
+                    cells: fields[patches.start].cell_means(grid),
+                    vertices: None,
+                },
+                _ => SurfaceResult {
+                    name: s.name.clone(),
+                    mean,
+                    cells,
+                    vertices: at_positions,
+                },
+            }
+        })
+        .collect()
 }
 
 /// The Galerkin system of the projection method for any kind of scene.
@@ -368,6 +449,11 @@ fn kernel_error_3d(
     progress: &dyn Progress,
 ) -> Result<KernelError3d, Cancelled> {
     progress.check()?;
+    // eq. (5) over every pair of patches would cost as much as the solve on a mesh (and its
+    // cells are the parallelograms'): it is measured on scenes of parallelograms only
+    if quads.iter().any(|q| q.triangle) {
+        return Ok((None, Vec::new()));
+    }
     let geo = three_d::Geometry::new(quads);
     let touching = geo.touching();
     let touch = |i: usize, j: usize| touching.contains(&(i.min(j), i.max(j)));
@@ -438,7 +524,12 @@ pub fn surface_measures(job: &Job) -> Vec<f64> {
                     e1[2] * e3[0] - e1[0] * e3[2],
                     e1[0] * e3[1] - e1[1] * e3[0],
                 ];
-                (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
+                let a = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+                if q.triangle {
+                    0.5 * a
+                } else {
+                    a
+                }
             })
             .collect(),
         SceneKind::Fredholm(f) => vec![f.domain[1] - f.domain[0]],

@@ -56,6 +56,10 @@ pub struct SurfaceResult {
     /// Cell means on the output grid: `grid` cells (flatland, fredholm) or `grid × grid`
     /// (3d, rows by t then s).
     pub cells: Vec<[f64; 3]>,
+    /// With `output.vertices`, for a `triangle` or `mesh` surface: B at each of its positions,
+    /// averaged over the triangles that meet there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vertices: Option<Vec<[f64; 3]>>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]

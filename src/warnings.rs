@@ -14,7 +14,7 @@ use crate::scene::{Job, Quad, SceneKind, Segment};
 pub fn geometry(job: &Job) -> Vec<Warning> {
     match &job.scene.kind {
         SceneKind::Flatland(segments) => flatland(segments),
-        SceneKind::ThreeD(quads) => three_d(quads),
+        SceneKind::ThreeD(d) => three_d(d),
         SceneKind::Fredholm(_) => Vec::new(),
     }
 }
@@ -143,14 +143,20 @@ fn normal(q: &Quad) -> V3 {
     unit(cross(sub(c[1], c[0]), sub(c[3], c[0])))
 }
 
-fn three_d(quads: &[Quad]) -> Vec<Warning> {
+/// Pairs of parallelograms (the checks are not made for triangles and meshes yet).
+fn three_d(d: &crate::scene::ThreeD) -> Vec<Warning> {
+    let quads = &d.patches;
+    let owners = d.owners();
     let size = scale(quads.iter().flat_map(|q| q.corners.iter().flatten()));
     let eps = 1e-9 * size;
     let mut out = Vec::new();
     for i in 0..quads.len() {
         for j in i + 1..quads.len() {
+            if quads[i].triangle || quads[j].triangle {
+                continue;
+            }
             if let Some(message) = quad_pair(&quads[i], &quads[j], eps) {
-                out.push(warning(i, j, message));
+                out.push(warning(owners[i], owners[j], message));
             }
         }
     }

@@ -649,6 +649,7 @@ impl<'a> Hierarchy<'a> {
                             s: el.range,
                             t: [0.0, 1.0],
                             coeffs: pick(el).iter().map(|v| v.map(|x| x * f)).collect(),
+                            upper: false,
                         }
                     })
                     .collect();

@@ -6,6 +6,7 @@
 
 use crate::math::basis::legendre;
 use crate::math::quadrature::Rule;
+use crate::math::triangle::TriangleBasis;
 
 /// One leaf: B(s,t) = Σ c[q][p] φ_p(ŝ) φ_q(t̂) with ŝ, t̂ the local coordinates in the leaf.
 #[derive(Debug, Clone, PartialEq)]
@@ -13,8 +14,13 @@ pub struct Leaf {
     pub s: [f64; 2],
     /// `[0, 1]` in 1D.
     pub t: [f64; 2],
-    /// `k` (1D) or `k·k` (2D, `[q][p]`, p along s) coefficients per channel.
+    /// `k` (1D) or `k·k` (2D, `[q][p]`, p along s) coefficients per channel. On a triangle
+    /// field, the first (m+1)(m+2)/2 are those of [`TriangleBasis`] (normalised by the mean,
+    /// as here) and the rest zero.
     pub coeffs: Vec<[f64; 3]>,
+    /// On a triangle field: the leaf is the upper-right half of its square rather than the
+    /// lower-left ([`crate::three_d::geometry::Piece`]).
+    pub upper: bool,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -25,7 +31,11 @@ pub struct Field {
     /// Finest cells per side; every leaf is a union of these.
     pub res: usize,
     pub leaves: Vec<Leaf>,
-    /// For each finest cell (`[t][s]`), the leaf that holds it.
+    /// B over the triangle s + t ≤ 1 (a triangle patch), whose leaves are the triangles of
+    /// the midpoint split.
+    pub tri: bool,
+    /// For each finest cell (`[t][s]`), the leaf that holds it; on a triangle field, for each
+    /// half of each finest cell (`[t][s][upper]`).
     lookup: Vec<u32>,
 }
 
@@ -57,6 +67,45 @@ impl Field {
             order,
             res,
             leaves,
+            tri: false,
+            lookup,
+        }
+    }
+
+    /// A field over the triangle s + t ≤ 1 from the leaves of its midpoint split, aligned to a
+    /// `res` grid (a power of two).
+    pub fn triangle(order: usize, res: usize, leaves: Vec<Leaf>) -> Field {
+        let mut lookup = vec![u32::MAX; 2 * res * res];
+        for (i, l) in leaves.iter().enumerate() {
+            let s0 = (l.s[0] * res as f64).round() as usize;
+            let t0 = (l.t[0] * res as f64).round() as usize;
+            let n = ((l.s[1] - l.s[0]) * res as f64).round() as usize;
+            for j in 0..n {
+                for k in 0..n {
+                    // (k, j) from the leaf's right angle, in finest cells
+                    let (a, b) = if l.upper {
+                        (n - 1 - k, n - 1 - j)
+                    } else {
+                        (k, j)
+                    };
+                    let (cs, ct) = (s0 + k, t0 + j);
+                    let at = 2 * (ct * res + cs);
+                    if a + b + 1 < n {
+                        lookup[at] = i as u32;
+                        lookup[at + 1] = i as u32;
+                    } else if a + b + 1 == n {
+                        // on the leaf's diagonal: the half on its side
+                        lookup[at + usize::from(l.upper)] = i as u32;
+                    }
+                }
+            }
+        }
+        Field {
+            dims: 2,
+            order,
+            res,
+            leaves,
+            tri: true,
             lookup,
         }
     }
@@ -70,6 +119,7 @@ impl Field {
                 s: [c as f64 * h, (c + 1) as f64 * h],
                 t: [0.0, 1.0],
                 coeffs: local[c * k..(c + 1) * k].to_vec(),
+                upper: false,
             })
             .collect();
         Field::from_leaves(1, order, cells, leaves)
@@ -88,6 +138,7 @@ impl Field {
                     s: [cs as f64 * h, (cs + 1) as f64 * h],
                     t: [ct as f64 * h, (ct + 1) as f64 * h],
                     coeffs: local[at..at + kk].to_vec(),
+                    upper: false,
                 });
             }
         }
@@ -97,6 +148,23 @@ impl Field {
     /// The leaf that holds (s, t).
     pub fn leaf_at(&self, s: f64, t: f64) -> &Leaf {
         let cell = |x: f64| ((x * self.res as f64) as usize).min(self.res - 1);
+        if self.tri {
+            // a point outside the triangle is taken at its nearest point on the diagonal
+            let (s, t) = if s + t > 1.0 {
+                let d = 0.5 * (s + t - 1.0);
+                ((s - d).max(0.0), (t - d).max(0.0))
+            } else {
+                (s, t)
+            };
+            let (cs, ct) = (cell(s), cell(t));
+            let (fs, ft) = (
+                s * self.res as f64 - cs as f64,
+                t * self.res as f64 - ct as f64,
+            );
+            let upper = fs + ft > 1.0 && cs + ct + 1 < self.res;
+            let at = 2 * (ct * self.res + cs) + usize::from(upper);
+            return &self.leaves[self.lookup[at] as usize];
+        }
         let row = if self.dims == 2 { cell(t) } else { 0 };
         &self.leaves[self.lookup[row * self.res + cell(s)] as usize]
     }
@@ -110,6 +178,22 @@ impl Field {
     /// The expansion of `leaf` at (s, t), also outside the leaf (a polynomial).
     pub fn eval_leaf(&self, leaf: &Leaf, s: f64, t: f64) -> [f64; 3] {
         let k = self.order + 1;
+        if self.tri {
+            let h = leaf.s[1] - leaf.s[0];
+            let (u, v) = if leaf.upper {
+                ((leaf.s[1] - s) / h, (leaf.t[1] - t) / h)
+            } else {
+                ((s - leaf.s[0]) / h, (t - leaf.t[0]) / h)
+            };
+            let n = crate::math::triangle::dimension(self.order);
+            let mut phi = [0.0; 64];
+            TriangleBasis::of_order(self.order).eval(u, v, &mut phi[..n]);
+            let mut out = [0.0; 3];
+            for (c, p) in leaf.coeffs[..n].iter().zip(&phi[..n]) {
+                (0..3).for_each(|ch| out[ch] += c[ch] * p);
+            }
+            return out;
+        }
         let mut ps = [0.0; 16];
         let mut pt = [0.0; 16];
         legendre((s - leaf.s[0]) / (leaf.s[1] - leaf.s[0]), &mut ps[..k]);
@@ -137,6 +221,11 @@ impl Field {
     /// ∫ B over the parameter rectangle `[s0,s1] × [t0,t1]` (in 1D only `s` counts), exactly:
     /// a Gauss rule of ⌈(m+1)/2⌉ points on each leaf piece integrates the polynomial exactly.
     pub fn integral(&self, s: [f64; 2], t: [f64; 2]) -> [f64; 3] {
+        if self.tri {
+            // over a triangle only the whole is asked for (its mean times its measure, ½)
+            debug_assert!(s == [0.0, 1.0] && t == [0.0, 1.0]);
+            return self.mean().map(|x| 0.5 * x);
+        }
         let rule = Rule::for_degree(self.order);
         let mut out = [0.0; 3];
         let cell_range = |x: [f64; 2]| {
@@ -183,11 +272,24 @@ impl Field {
 
     /// Mean of B over the whole surface.
     pub fn mean(&self) -> [f64; 3] {
+        if self.tri {
+            // each leaf's share of the triangle is h², its mean the first coefficient
+            let mut out = [0.0; 3];
+            for l in &self.leaves {
+                let h = l.s[1] - l.s[0];
+                (0..3).for_each(|c| out[c] += h * h * l.coeffs[0][c]);
+            }
+            return out;
+        }
         self.integral([0.0, 1.0], [0.0, 1.0])
     }
 
     /// Cell means on a `grid` (1D) or `grid × grid` (2D, rows by t then s) split.
     pub fn cell_means(&self, grid: usize) -> Vec<[f64; 3]> {
+        if self.tri {
+            // a triangle is one cell (scene.md)
+            return vec![self.mean()];
+        }
         let g = grid as f64;
         let span = |i: usize| [i as f64 / g, (i + 1) as f64 / g];
         let area = if self.dims == 2 {

@@ -55,19 +55,45 @@ pub fn render_fields(
     height: u32,
     opts: Options,
 ) -> RgbImage {
+    render_from(job, fields, width, height, opts, None)
+}
+
+/// The scene seen by a camera that frames the patches `patches` (a mesh surface's picture).
+pub fn view_of(
+    job: &Job,
+    fields: &[Field],
+    patches: std::ops::Range<usize>,
+    width: u32,
+    height: u32,
+) -> RgbImage {
     let SceneKind::ThreeD(quads) = &job.scene.kind else {
         return RgbImage::new(width, height);
     };
-    let geo: Vec<Parallelogram> = quads
-        .iter()
-        .map(|q| Parallelogram::new(&q.corners))
-        .collect();
+    let geo: Vec<Parallelogram> = quads[patches].iter().map(Parallelogram::of).collect();
+    let camera = frame(&geo, &Bvh::new(&geo));
+    render_from(job, fields, width, height, Options::default(), Some(camera))
+}
+
+fn render_from(
+    job: &Job,
+    fields: &[Field],
+    width: u32,
+    height: u32,
+    opts: Options,
+    camera: Option<Camera>,
+) -> RgbImage {
+    let SceneKind::ThreeD(quads) = &job.scene.kind else {
+        return RgbImage::new(width, height);
+    };
+    let geo: Vec<Parallelogram> = quads.iter().map(Parallelogram::of).collect();
     let bvh = Bvh::new(&geo);
-    let camera = job.output.camera.unwrap_or_else(|| frame(&geo, &bvh));
+    let camera = camera
+        .or(job.output.camera)
+        .unwrap_or_else(|| frame(&geo, &bvh));
     let view = View::new(&camera, width, height);
     let smooth: Vec<Option<Smooth>> = fields
         .iter()
-        .map(|f| (!opts.raw).then(|| Smooth::new(f)))
+        .map(|f| (!opts.raw && !f.tri).then(|| Smooth::new(f)))
         .collect();
     let (w, h) = (width as usize, height as usize);
     // radiance per sample, rows in parallel
@@ -142,7 +168,7 @@ pub fn frame(geo: &[Parallelogram], bvh: &Bvh) -> Camera {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for q in geo {
-        for c in q.piece([0.0, 1.0], [0.0, 1.0]) {
+        for c in q.outline() {
             for a in 0..3 {
                 lo[a] = lo[a].min(c[a]);
                 hi[a] = hi[a].max(c[a]);

@@ -72,12 +72,36 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
         })
     };
     let coefficients = || encode_png(&plot::coefficients(&outcome.result.coefficients));
+    // one field per surface; a mesh has one per triangle, and its picture is the scene
+    // seen by a camera that frames it
+    let per_surface: Vec<Result<&Field, std::ops::Range<usize>>> = match &job.scene.kind {
+        SceneKind::ThreeD(d) => d
+            .surfaces
+            .iter()
+            .map(|s| match s.shape {
+                crate::scene::Shape3::Mesh { .. } => Err(s.patches.clone()),
+                _ => Ok(&outcome.fields[s.patches.start]),
+            })
+            .collect(),
+        _ => outcome.fields.iter().map(Ok).collect(),
+    };
     let surfaces = || -> Vec<Vec<u8>> {
-        outcome
-            .fields
+        per_surface
             .par_iter()
             .zip(&names)
             .map(|(f, name)| {
+                let f = match f {
+                    Ok(f) => *f,
+                    Err(patches) => {
+                        return encode_png(&camera::view_of(
+                            job,
+                            &outcome.fields,
+                            patches.clone(),
+                            440,
+                            360,
+                        ))
+                    }
+                };
                 // each surface on its own scale (the bar says which), unless the document
                 // sets one: a wall beside a light is not black, and B that varies by a few
                 // per cent is shown from its least value up

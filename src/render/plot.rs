@@ -287,6 +287,10 @@ pub fn surface(title: &str, f: &Field, range: (f64, f64)) -> RgbImage {
         let t = 1.0 - (py as f64 + 0.5) / ph as f64;
         for px in 0..pw.min(w.saturating_sub(x0)) {
             let s = (px as f64 + 0.5) / pw as f64;
+            // a triangle is the half s + t ≤ 1 of its square of parameters
+            if f.tri && s + t > 1.0 {
+                continue;
+            }
             let b = f.eval(s, if square { t } else { 0.0 });
             img.put_pixel(x0 + px, y0 + py, tone(b));
         }

@@ -55,6 +55,8 @@ impl std::error::Error for DocumentErrors {}
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Limits {
     pub max_surfaces: usize,
+    /// Triangles in a 3D scene, of `triangle` and `mesh` surfaces together.
+    pub max_triangles: usize,
     pub max_order: usize,
     pub max_resolution: usize,
     /// The projection matrix is `basis_size²` dense entries of 8 bytes, and thresholding may add
@@ -67,6 +69,7 @@ impl Default for Limits {
     fn default() -> Self {
         Limits {
             max_surfaces: 256,
+            max_triangles: 1 << 20,
             max_order: 8,
             max_resolution: 1024,
             // At most 12 bytes per matrix entry at peak (the dense matrix, and a sparse copy of at
@@ -97,7 +100,7 @@ pub struct Scene {
 #[derive(Debug, Clone, PartialEq)]
 pub enum SceneKind {
     Flatland(Vec<Segment>),
-    ThreeD(Vec<Quad>),
+    ThreeD(ThreeD),
     Fredholm(Fredholm),
 }
 
@@ -129,7 +132,79 @@ pub struct Segment {
     pub emission_region: [f64; 2],
 }
 
-/// A 3D surface: p(s,t) = p0 + s(p1 − p0) + t(p3 − p0), front normal (p1 − p0) × (p3 − p0).
+/// A 3D scene: the document's surfaces, and the patches the solver works on — one per
+/// parallelogram or triangle surface, one per triangle of a mesh, in document order. It
+/// dereferences to the patches.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ThreeD {
+    pub surfaces: Vec<Surface3>,
+    pub patches: Vec<Quad>,
+}
+
+impl std::ops::Deref for ThreeD {
+    type Target = [Quad];
+    fn deref(&self) -> &[Quad] {
+        &self.patches
+    }
+}
+
+impl ThreeD {
+    /// A scene of parallelograms only, one patch per surface.
+    pub fn of_parallelograms(patches: Vec<Quad>) -> ThreeD {
+        ThreeD {
+            surfaces: patches
+                .iter()
+                .enumerate()
+                .map(|(i, q)| Surface3 {
+                    name: q.name.clone(),
+                    shape: Shape3::Parallelogram,
+                    patches: i..i + 1,
+                })
+                .collect(),
+            patches,
+        }
+    }
+
+    /// The document surface of each patch.
+    pub fn owners(&self) -> Vec<usize> {
+        let mut out = vec![0; self.patches.len()];
+        for (i, s) in self.surfaces.iter().enumerate() {
+            out[s.patches.clone()].fill(i);
+        }
+        out
+    }
+
+    /// Whether every surface is a parallelogram.
+    pub fn parallelograms_only(&self) -> bool {
+        self.surfaces
+            .iter()
+            .all(|s| matches!(s.shape, Shape3::Parallelogram))
+    }
+}
+
+/// A surface of a 3D document and the patches it became.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Surface3 {
+    pub name: String,
+    pub shape: Shape3,
+    pub patches: std::ops::Range<usize>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum Shape3 {
+    Parallelogram,
+    /// Its corners, as the one patch holds them.
+    Triangle,
+    /// Positions and triangles as the document gives them; patch `i` is triangle `i`.
+    Mesh {
+        positions: Vec<[f64; 3]>,
+        triangles: Vec<[usize; 3]>,
+    },
+}
+
+/// A patch of a 3D surface. A parallelogram: p(s,t) = p0 + s(p1 − p0) + t(p3 − p0), front normal
+/// (p1 − p0) × (p3 − p0). A triangle (`triangle`) is the half s + t ≤ 1 of the same map: its
+/// corners are p0, p1, p3 and `corners[2]` = p1 + p3 − p0 completes the parallelogram.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Quad {
     pub name: String,
@@ -137,6 +212,31 @@ pub struct Quad {
     pub material: Material,
     /// `([s0, s1], [t0, t1])`; the whole surface when the document has none.
     pub emission_region: ([f64; 2], [f64; 2]),
+    pub triangle: bool,
+}
+
+impl Quad {
+    /// The patch of triangle (p0, p1, p2).
+    pub fn triangle(name: String, p: [[f64; 3]; 3], material: Material) -> Quad {
+        let far = [0, 1, 2].map(|c| p[1][c] + p[2][c] - p[0][c]);
+        Quad {
+            name,
+            corners: [p[0], p[1], far, p[2]],
+            material,
+            emission_region: ([0.0, 1.0], [0.0, 1.0]),
+            triangle: true,
+        }
+    }
+
+    /// Its corners as a polygon, counter-clockwise seen from the front: four, or the triangle's
+    /// three.
+    pub fn polygon(&self) -> Vec<[f64; 3]> {
+        if self.triangle {
+            vec![self.corners[0], self.corners[1], self.corners[3]]
+        } else {
+            self.corners.to_vec()
+        }
+    }
 }
 
 /// `B(x) = E(x) + ∫_a^b K(x,y) B(y) dy`.
@@ -258,6 +358,8 @@ pub struct Output {
     pub grid: usize,
     pub reference: Option<Reference>,
     pub coefficients: usize,
+    /// List B at the positions of `triangle` and `mesh` surfaces.
+    pub vertices: bool,
 }
 
 impl Default for Output {
@@ -274,6 +376,7 @@ impl Default for Output {
             grid: 8,
             reference: None,
             coefficients: 256,
+            vertices: false,
         }
     }
 }
@@ -283,7 +386,7 @@ impl Job {
     pub fn surface_count(&self) -> usize {
         match &self.scene.kind {
             SceneKind::Flatland(s) => s.len(),
-            SceneKind::ThreeD(q) => q.len(),
+            SceneKind::ThreeD(q) => q.surfaces.len(),
             SceneKind::Fredholm(_) => 1,
         }
     }
@@ -292,7 +395,7 @@ impl Job {
     pub fn surface_names(&self) -> Vec<String> {
         match &self.scene.kind {
             SceneKind::Flatland(s) => s.iter().map(|s| s.name.clone()).collect(),
-            SceneKind::ThreeD(q) => q.iter().map(|q| q.name.clone()).collect(),
+            SceneKind::ThreeD(q) => q.surfaces.iter().map(|s| s.name.clone()).collect(),
             SceneKind::Fredholm(_) => vec!["domain".to_string()],
         }
     }

@@ -63,6 +63,7 @@ fn document(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Job> {
     }
     if let (Some(scene), Some(s)) = (&scene, &solver) {
         finest_elements(w, scene, &s.value, limits);
+        triangles_need_the_hierarchy(w, scene, &s.value);
     }
     let scene = scene?;
     let mut output = output?.ok()?;
@@ -91,7 +92,12 @@ fn finest_elements(w: &mut Walker, scene: &Scene, solver: &Solver, limits: &Limi
     };
     let longest = quads
         .iter()
-        .map(|q| side(q.corners[0], q.corners[1]).max(side(q.corners[0], q.corners[3])))
+        .map(|q| {
+            let c = q.polygon();
+            (0..c.len())
+                .map(|i| side(c[i], c[(i + 1) % c.len()]))
+                .fold(0.0, f64::max)
+        })
         .fold(0.0, f64::max);
     let per_side = longest / size;
     if per_side > limits.max_resolution as f64 {
@@ -101,6 +107,28 @@ fn finest_elements(w: &mut Walker, scene: &Scene, solver: &Solver, limits: &Limi
                 "{size} would split the longest side ({longest}) into {per_side:.0} elements, more than max_resolution ({})",
                 limits.max_resolution
             ),
+        );
+    }
+}
+
+/// The projection method works on parallelograms only: `triangle` and `mesh` surfaces need
+/// `method: "hierarchical"`.
+fn triangles_need_the_hierarchy(w: &mut Walker, scene: &Scene, solver: &Solver) {
+    let SceneKind::ThreeD(d) = &scene.kind else {
+        return;
+    };
+    if solver.method != Method::Projection {
+        return;
+    }
+    for (i, s) in d.surfaces.iter().enumerate() {
+        let field = match s.shape {
+            Shape3::Parallelogram => continue,
+            Shape3::Triangle => "triangle",
+            Shape3::Mesh { .. } => "mesh",
+        };
+        w.error(
+            format!("/scene/surfaces/{i}/{field}"),
+            format!("the projection method takes parallelograms only; solve a {field} with solver.method \"hierarchical\""),
         );
     }
 }
@@ -219,20 +247,46 @@ fn scene(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Scene> {
                 let segs: Option<Vec<Segment>> = segs.into_iter().collect();
                 SceneKind::Flatland(segs?)
             } else {
-                let quads: Vec<Option<Quad>> = list
+                let parsed: Vec<Option<(Surface3, Vec<Quad>)>> = list
                     .iter()
                     .enumerate()
-                    .map(|(i, s)| quad(w, s, &index(p, i)))
+                    .map(|(i, s)| surface3(w, s, &index(p, i)))
                     .collect();
                 check_surfaces(
                     w,
                     list,
-                    quads
+                    parsed
                         .iter()
-                        .map(|q| q.as_ref().map(|q| (&q.name, &q.material))),
+                        .map(|q| q.as_ref().map(|(s, q)| (&s.name, &q[0].material))),
                 );
-                let quads: Option<Vec<Quad>> = quads.into_iter().collect();
-                SceneKind::ThreeD(quads?)
+                let triangles: usize = parsed
+                    .iter()
+                    .flatten()
+                    .filter(|(s, _)| !matches!(s.shape, Shape3::Parallelogram))
+                    .map(|(_, q)| q.len())
+                    .sum();
+                if triangles > limits.max_triangles {
+                    w.error(
+                        p,
+                        format!(
+                            "the scene has {triangles} triangles, more than max_triangles ({})",
+                            limits.max_triangles
+                        ),
+                    );
+                    return None;
+                }
+                let parsed: Option<Vec<(Surface3, Vec<Quad>)>> = parsed.into_iter().collect();
+                let mut scene = ThreeD {
+                    surfaces: Vec::new(),
+                    patches: Vec::new(),
+                };
+                for (mut s, q) in parsed? {
+                    let at = scene.patches.len();
+                    s.patches = at..at + q.len();
+                    scene.surfaces.push(s);
+                    scene.patches.extend(q);
+                }
+                SceneKind::ThreeD(scene)
             }
         }
     };
@@ -449,34 +503,50 @@ fn segment(w: &mut Walker, v: &Value, path: &str) -> Option<Segment> {
     })
 }
 
-fn quad(w: &mut Walker, v: &Value, path: &str) -> Option<Quad> {
+/// A 3D surface: exactly one of `corners`, `triangle`, `mesh`; its patches.
+fn surface3(w: &mut Walker, v: &Value, path: &str) -> Option<(Surface3, Vec<Quad>)> {
     let map = w.object(
         v,
         path,
         &[
             "name",
             "corners",
+            "triangle",
+            "mesh",
             "reflectance",
             "emission",
             "emission_region",
         ],
     )?;
     let name = surface_name(w, map, path);
-    let corners = w.required(map, path, "corners").and_then(|c| {
-        let p = child(path, "corners");
-        let arr = w.array_len(c, &p, 4)?;
-        let pts: Vec<Option<[f64; 3]>> = arr
-            .iter()
-            .enumerate()
-            .map(|(i, x)| w.coordinates::<3>(x, &index(&p, i)))
-            .collect();
-        let pts: Option<Vec<[f64; 3]>> = pts.into_iter().collect();
-        let pts = pts?;
-        let c = [pts[0], pts[1], pts[2], pts[3]];
-        check_parallelogram(w, &c, &p).then_some(c)
-    });
+    let given: Vec<&str> = ["corners", "triangle", "mesh"]
+        .into_iter()
+        .filter(|k| map.contains_key(*k))
+        .collect();
     let material = material(w, map, path);
+    if given.len() != 1 {
+        w.error(
+            path,
+            if given.is_empty() {
+                "a 3d surface needs one of `corners`, `triangle`, `mesh`: missing required field"
+                    .to_string()
+            } else {
+                format!(
+                    "a 3d surface has exactly one of `corners`, `triangle`, `mesh`; found {}",
+                    given.join(", ")
+                )
+            },
+        );
+        return None;
+    }
     let region = match map.get("emission_region") {
+        Some(_) if given[0] != "corners" => {
+            w.error(
+                child(path, "emission_region"),
+                "an emission region is for parallelograms only; give the lit part its own triangles",
+            );
+            None
+        }
         Some(r) => {
             let p = child(path, "emission_region");
             w.object(r, &p, &["s", "t"]).and_then(|m| {
@@ -491,12 +561,173 @@ fn quad(w: &mut Walker, v: &Value, path: &str) -> Option<Quad> {
         }
         None => Some(([0.0, 1.0], [0.0, 1.0])),
     };
-    Some(Quad {
-        name: name?,
-        corners: corners?,
-        material: material?,
-        emission_region: region?,
-    })
+    let p = child(path, given[0]);
+    match given[0] {
+        "corners" => {
+            let corners = points(w, &map["corners"], &p, Some(4)).and_then(|pts| {
+                let c = [pts[0], pts[1], pts[2], pts[3]];
+                check_parallelogram(w, &c, &p).then_some(c)
+            });
+            let (name, material) = (name?, material?);
+            Some((
+                Surface3 {
+                    name: name.clone(),
+                    shape: Shape3::Parallelogram,
+                    patches: 0..1,
+                },
+                vec![Quad {
+                    name,
+                    corners: corners?,
+                    material,
+                    emission_region: region?,
+                    triangle: false,
+                }],
+            ))
+        }
+        "triangle" => {
+            let t = points(w, &map["triangle"], &p, Some(3)).and_then(|pts| {
+                let t = [pts[0], pts[1], pts[2]];
+                check_triangle(w, &t, &p).then_some(t)
+            });
+            let (name, material) = (name?, material?);
+            region?;
+            Some((
+                Surface3 {
+                    name: name.clone(),
+                    shape: Shape3::Triangle,
+                    patches: 0..1,
+                },
+                vec![Quad::triangle(name, t?, material)],
+            ))
+        }
+        _ => {
+            let mesh = mesh(w, &map["mesh"], &p);
+            let (name, material, (positions, triangles)) = (name?, material?, mesh?);
+            region?;
+            let patches = triangles
+                .iter()
+                .map(|t| Quad::triangle(name.clone(), t.map(|i| positions[i]), material.clone()))
+                .collect::<Vec<_>>();
+            Some((
+                Surface3 {
+                    name,
+                    shape: Shape3::Mesh {
+                        positions,
+                        triangles,
+                    },
+                    patches: 0..patches.len(),
+                },
+                patches,
+            ))
+        }
+    }
+}
+
+/// An array of points `[x, y, z]`, of exactly `n` when given.
+fn points(w: &mut Walker, v: &Value, path: &str, n: Option<usize>) -> Option<Vec<[f64; 3]>> {
+    let arr = match n {
+        Some(n) => w.array_len(v, path, n)?,
+        None => match v.as_array() {
+            Some(a) if !a.is_empty() => a.as_slice(),
+            _ => {
+                w.error(path, "expected a non-empty array of [x, y, z]");
+                return None;
+            }
+        },
+    };
+    let before = w.errors.len();
+    let mut out = Vec::with_capacity(arr.len());
+    for (i, x) in arr.iter().enumerate() {
+        if let Some(p) = w.coordinates::<3>(x, &index(path, i)) {
+            out.push(p);
+        }
+        if w.errors.len() - before >= MAX_ERRORS_PER_LIST {
+            return None;
+        }
+    }
+    (out.len() == arr.len()).then_some(out)
+}
+
+/// At most this many errors are reported from one list of a mesh: a broken export can have a
+/// million bad entries, and the first few say what is wrong.
+const MAX_ERRORS_PER_LIST: usize = 20;
+
+/// `{"positions": [...], "triangles": [[i, j, k], ...]}`: indices in range, no triangle of
+/// zero area.
+#[allow(clippy::type_complexity)]
+fn mesh(w: &mut Walker, v: &Value, path: &str) -> Option<(Vec<[f64; 3]>, Vec<[usize; 3]>)> {
+    let map = w.object(v, path, &["positions", "triangles"])?;
+    let positions = w
+        .required(map, path, "positions")
+        .and_then(|p| points(w, p, &child(path, "positions"), None));
+    let tp = child(path, "triangles");
+    let raw = w.required(map, path, "triangles")?;
+    let Some(list) = raw.as_array().filter(|a| !a.is_empty()) else {
+        w.error(&tp, "expected a non-empty array of [i, j, k]");
+        return None;
+    };
+    let n = positions.as_ref().map_or(u32::MAX as usize, Vec::len);
+    let before = w.errors.len();
+    let mut triangles = Vec::with_capacity(list.len());
+    for (i, t) in list.iter().enumerate() {
+        if w.errors.len() - before >= MAX_ERRORS_PER_LIST {
+            return None;
+        }
+        let p = index(&tp, i);
+        let Some(arr) = w.array_len(t, &p, 3) else {
+            continue;
+        };
+        let mut ix = [0usize; 3];
+        let mut ok = true;
+        for (j, x) in arr.iter().enumerate() {
+            match x.as_u64() {
+                Some(x) if (x as usize) < n => ix[j] = x as usize,
+                Some(x) => {
+                    w.error(
+                        index(&p, j),
+                        format!("index {x} is out of range: the mesh has {n} positions"),
+                    );
+                    ok = false;
+                }
+                None => {
+                    w.error(index(&p, j), "expected an index (an integer ≥ 0)");
+                    ok = false;
+                }
+            }
+        }
+        if !ok {
+            continue;
+        }
+        if let Some(pos) = &positions {
+            if !check_triangle(w, &ix.map(|i| pos[i]), &p) {
+                continue;
+            }
+        }
+        triangles.push(ix);
+    }
+    let positions = positions?;
+    (triangles.len() == list.len()).then_some((positions, triangles))
+}
+
+/// A triangle of non-zero area: |(p1 − p0) × (p2 − p0)| above 1e-12 of its longest side squared.
+fn check_triangle(w: &mut Walker, t: &[[f64; 3]; 3], path: &str) -> bool {
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let norm = |a: [f64; 3]| (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    let (e1, e2) = (sub(t[1], t[0]), sub(t[2], t[0]));
+    let size = norm(e1).max(norm(e2)).max(norm(sub(t[2], t[1])));
+    let cross = [
+        e1[1] * e2[2] - e1[2] * e2[1],
+        e1[2] * e2[0] - e1[0] * e2[2],
+        e1[0] * e2[1] - e1[1] * e2[0],
+    ];
+    if size == 0.0 || norm(cross) <= 1e-12 * size * size {
+        w.error(
+            path,
+            "the triangle has zero area (its corners are collinear or equal)",
+        );
+        return false;
+    }
+    true
 }
 
 /// p0 + p2 = p1 + p3 within 1e-6 of the size, and a non-zero area.
@@ -725,7 +956,14 @@ fn output(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Parsed<Output>> 
     let map = w.object(
         v,
         path,
-        &["image", "camera", "grid", "reference", "coefficients"],
+        &[
+            "image",
+            "camera",
+            "grid",
+            "reference",
+            "coefficients",
+            "vertices",
+        ],
     )?;
     let d = Output::default();
     let image = match map.get("image") {
@@ -748,7 +986,12 @@ fn output(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Parsed<Output>> 
         Some(v) => w.integer(v, "/output/coefficients", 0, 100_000),
         None => Some(d.coefficients),
     };
+    let vertices = match map.get("vertices") {
+        Some(v) => w.boolean(v, "/output/vertices"),
+        None => Some(d.vertices),
+    };
     let ok = image.is_some()
+        && vertices.is_some()
         && camera.is_some()
         && grid.is_some()
         && reference.is_some()
@@ -760,6 +1003,7 @@ fn output(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Parsed<Output>> 
             grid: grid.unwrap_or(d.grid),
             reference: reference.flatten(),
             coefficients: coefficients.unwrap_or(d.coefficients),
+            vertices: vertices.unwrap_or(d.vertices),
         },
         ok,
     })

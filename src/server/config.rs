@@ -17,6 +17,11 @@ pub struct Config {
     /// Most surfaces in one scene.
     #[arg(long, env = "WAVRAD_MAX_SURFACES", default_value_t = 64)]
     pub max_surfaces: usize,
+    /// Most triangles in one scene (`triangle` and `mesh` surfaces together). Every facing
+    /// pair of triangles is linked before refinement starts, so the solve's time and memory grow
+    /// with the square of this.
+    #[arg(long, env = "WAVRAD_MAX_TRIANGLES", default_value_t = 4096)]
+    pub max_triangles: usize,
     /// Highest polynomial order.
     #[arg(long, env = "WAVRAD_MAX_ORDER", default_value_t = 6)]
     pub max_order: usize,
@@ -78,6 +83,7 @@ impl Config {
     pub fn limits(&self) -> Limits {
         Limits {
             max_surfaces: self.max_surfaces,
+            max_triangles: self.max_triangles,
             max_order: self.max_order,
             max_resolution: self.max_resolution,
             max_basis_functions: self.max_basis_functions,

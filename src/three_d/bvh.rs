@@ -45,6 +45,8 @@ struct Leaf {
     n: [Lanes4; 3],
     u: [Lanes4; 3],
     v: [Lanes4; 3],
+    /// 1 for a triangle (s + u ≤ 1 too), 0 for a parallelogram.
+    tri: Lanes4,
     id: [u32; W],
 }
 
@@ -105,11 +107,9 @@ impl Bvh {
         let size = quads.iter().map(|q| q.diameter()).fold(0.0, f64::max);
         let tol = 1e-9 * size;
         let bounding = |q: &Parallelogram| {
-            quads.iter().all(|o| {
-                o.piece([0.0, 1.0], [0.0, 1.0])
-                    .iter()
-                    .all(|&c| q.side(c) >= -tol)
-            })
+            quads
+                .iter()
+                .all(|o| o.outline().iter().all(|&c| q.side(c) >= -tol))
         };
         let members = (0..quads.len() as u32)
             .filter(|&i| !bounding(&quads[i as usize]))
@@ -151,7 +151,7 @@ impl Bvh {
         let q = &self.quads[i as usize];
         let mut lo = q.p0;
         let mut hi = q.p0;
-        for c in [q.at(1.0, 0.0), q.at(1.0, 1.0), q.at(0.0, 1.0)] {
+        for c in q.outline() {
             for a in 0..3 {
                 lo[a] = lo[a].min(c[a]);
                 hi[a] = hi[a].max(c[a]);
@@ -247,8 +247,10 @@ impl Bvh {
             for chunk in tree.surfaces.chunks(W) {
                 let mut lanes = [[[0.0; W]; 3]; 4];
                 let mut id = [u32::MAX; W];
+                let mut tri = [0.0; W];
                 for (k, &i) in chunk.iter().enumerate() {
                     let q = &self.quads[i as usize];
+                    tri[k] = if q.tri { 1.0 } else { 0.0 };
                     for (lane, vector) in lanes.iter_mut().zip([q.p0, q.n, q.u, q.v]) {
                         for a in 0..3 {
                             lane[a][k] = vector[a];
@@ -257,7 +259,14 @@ impl Bvh {
                     id[k] = i;
                 }
                 let [p0, n, u, v] = lanes.map(|l| l.map(Lanes4));
-                self.leaves.push(Leaf { p0, n, u, v, id });
+                self.leaves.push(Leaf {
+                    p0,
+                    n,
+                    u,
+                    v,
+                    tri: Lanes4(tri),
+                    id,
+                });
             }
             let packets = self.leaves.len() as u32 - first;
             return LEAF | first << 1 | (packets - 1);
@@ -609,7 +618,11 @@ impl<L: Lanes> Ray<L> {
             v.and(v.lt(v.mul(self.t_min, a), tn), v.lt(tn, v.mul(t_max, a))),
             v.and(
                 v.and(v.le(zero, sn), v.le(sn, a)),
-                v.and(v.le(zero, un), v.le(un, a)),
+                v.and(
+                    v.and(v.le(zero, un), v.le(un, a)),
+                    // a triangle's diagonal: s + u ≤ 1 (tri = 0 makes it s ≤ 1 again)
+                    v.le(v.add(sn, v.mul(v.load(&l.tri), un)), a),
+                ),
             ),
         );
         let mut skipped = 0;
@@ -691,7 +704,9 @@ mod tests {
                 let t = det(r, m[1], m[2]) / den;
                 let s = det(m[0], r, m[2]) / den;
                 let u = det(m[0], m[1], r) / den;
-                let on = (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&u);
+                let on = (0.0..=1.0).contains(&s)
+                    && (0.0..=1.0).contains(&u)
+                    && (!q.tri || s + u <= 1.0);
                 (on && t > 1e-9 && t < t_max).then_some(Hit {
                     surface: i,
                     dist: t,

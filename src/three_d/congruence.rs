@@ -99,6 +99,9 @@ impl Congruence {
     /// in the two pieces, like the oracle's estimate); else (b, a) too, whose block is the
     /// transpose.
     pub fn of(quads: &[Parallelogram], a: Piece, b: Piece, unit: f64, directed: bool) -> Self {
+        if quads[a.surface].tri || quads[b.surface].tri {
+            return Congruence::alone(a, b);
+        }
         let (ca, cb) = (a.corners(quads), b.corners(quads));
         let (na, nb) = (quads[a.surface].n, quads[b.surface].n);
         let ab = ordered((&ca, na), (&cb, nb), unit);
@@ -118,6 +121,35 @@ impl Congruence {
             reverse,
             first,
             second,
+        }
+    }
+
+    /// A class of its own for a pair with a triangle piece: the symmetries above are those of
+    /// the square, not the triangle's, so such a pair shares its block with no other.
+    fn alone(a: Piece, b: Piece) -> Self {
+        let id = |p: Piece| {
+            [
+                p.surface as i64,
+                p.s[0].to_bits() as i64,
+                p.t[0].to_bits() as i64,
+                p.s[1].to_bits() as i64,
+                i64::from(p.upper),
+            ]
+        };
+        let mut key = [0; 18];
+        key[0] = i64::MIN;
+        key[1..6].copy_from_slice(&id(a));
+        key[6..11].copy_from_slice(&id(b));
+        let same = Relabel {
+            swap: false,
+            flip_s: false,
+            flip_t: false,
+        };
+        Congruence {
+            key,
+            reverse: false,
+            first: same,
+            second: same,
         }
     }
 
@@ -287,7 +319,15 @@ mod tests {
         let flip = |x: [f64; 2], f: bool| if f { [1.0 - x[1], 1.0 - x[0]] } else { x };
         let (s, t) = (flip(p.s, r.flip_s), flip(p.t, r.flip_t));
         let (s, t) = if r.swap { (t, s) } else { (s, t) };
-        (new, Piece { surface, s, t })
+        (
+            new,
+            Piece {
+                upper: false,
+                surface,
+                s,
+                t,
+            },
+        )
     }
 
     fn galerkin(quads: &[Parallelogram], a: Piece, b: Piece, k: usize) -> Vec<f64> {
@@ -332,11 +372,13 @@ mod tests {
             [2.0, 0.0, 0.0],
         ]);
         let a = Piece {
+            upper: false,
             surface: 0,
             s: [0.25, 0.5],
             t: [0.1, 0.5],
         };
         let b = Piece {
+            upper: false,
             surface: 1,
             s: [0.1, 0.5],
             t: [0.5, 0.75],
@@ -430,11 +472,13 @@ mod tests {
                 [lo, lo + rng.random_range(0.2..0.4)]
             };
             let a = Piece {
+                upper: false,
                 surface: 0,
                 s: range(&mut rng),
                 t: range(&mut rng),
             };
             let b = Piece {
+                upper: false,
                 surface: 1,
                 s: range(&mut rng),
                 t: range(&mut rng),

@@ -104,7 +104,8 @@ impl Mask {
     ) -> Vec<Option<Mask>> {
         (0..quads.len())
             .map(|i| {
-                (!contacts(quads, i).is_empty() || lidded(quads, i))
+                // the covered part is a parallelogram's: a triangle patch has none
+                (!quads[i].tri && (!contacts(quads, i).is_empty() || lidded(quads, i)))
                     .then(|| Mask::probe(quads, bvh, i, res(i)))
                     .filter(|m| m.cells.iter().any(|c| *c != Cell::Open))
             })
@@ -354,13 +355,19 @@ pub fn contacts(quads: &[Parallelogram], i: usize) -> Vec<[[f64; 2]; 2]> {
     let tol = 1e-9 * q.diameter();
     let inside = |x: f64| (1e-6..1.0 - 1e-6).contains(&x);
     let mut lines = Vec::new();
+    if q.tri {
+        return lines;
+    }
     for (j, o) in quads.iter().enumerate() {
         if j == i {
             continue;
         }
-        let c = o.piece([0.0, 1.0], [0.0, 1.0]);
+        let c = o.outline();
         for e in 0..4 {
             let (a, b) = (c[e], c[(e + 1) % 4]);
+            if a == b {
+                continue;
+            }
             let (s, t) = q.params(scale(add(a, b), 0.5));
             if q.side(a).abs() < tol && q.side(b).abs() < tol && inside(s) && inside(t) {
                 let (pa, pb) = (q.params(a), q.params(b));
@@ -383,8 +390,9 @@ fn lidded(quads: &[Parallelogram], i: usize) -> bool {
         let side = |e: V3| dot(e, e).sqrt();
         let gap = q.side(o.p0);
         let reach = LID_GAP * side(o.e1).min(side(o.e3));
-        let corners = o.piece([0.0, 1.0], [0.0, 1.0]);
-        j != i
+        let corners = o.outline();
+        !q.tri
+            && j != i
             && dot(q.n, o.n) > 1.0 - 1e-9
             && gap > 0.0
             && gap < reach

@@ -37,7 +37,8 @@ pub fn normalize(a: V3) -> V3 {
     scale(a, 1.0 / norm(a))
 }
 
-/// A parallelogram surface with the dual basis that maps a point of its plane back to (s, t).
+/// A parallelogram surface with the dual basis that maps a point of its plane back to (s, t);
+/// or, with `tri`, the triangle s + t ≤ 1 of the same map (a patch of a triangle or a mesh).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Parallelogram {
     pub p0: V3,
@@ -45,7 +46,12 @@ pub struct Parallelogram {
     pub e3: V3,
     /// Unit front normal.
     pub n: V3,
+    /// The area of the surface: the parallelogram's, or the triangle's.
     pub area: f64,
+    /// |e1 × e3|, the area of the parameter square's image: dA = jac ds dt. Twice `area` on a
+    /// triangle.
+    pub jac: f64,
+    pub tri: bool,
     /// s = (p − p0)·u, t = (p − p0)·v for p in the plane.
     pub u: V3,
     pub v: V3,
@@ -70,8 +76,30 @@ impl Parallelogram {
             e3,
             n,
             area,
+            jac: area,
+            tri: false,
             u,
             v,
+        }
+    }
+
+    /// The patch of a scene: a parallelogram, or the triangle (p0, p1, p3) of its corners.
+    pub fn of(q: &crate::scene::Quad) -> Parallelogram {
+        let mut p = Parallelogram::new(&q.corners);
+        if q.triangle {
+            p.tri = true;
+            p.area = 0.5 * p.jac;
+        }
+        p
+    }
+
+    /// The corners of the whole surface, counter-clockwise; a triangle's third repeated.
+    pub fn outline(&self) -> [V3; 4] {
+        let c = self.piece([0.0, 1.0], [0.0, 1.0]);
+        if self.tri {
+            [c[0], c[1], c[3], c[3]]
+        } else {
+            c
         }
     }
 
@@ -107,8 +135,13 @@ impl Parallelogram {
         ]
     }
 
-    /// Length of the longer diagonal of the whole parallelogram.
+    /// Length of the longer diagonal of the whole parallelogram; a triangle's longest side.
     pub fn diameter(&self) -> f64 {
+        if self.tri {
+            return norm(self.e1)
+                .max(norm(self.e3))
+                .max(norm(sub(self.e1, self.e3)));
+        }
         norm(add(self.e1, self.e3)).max(norm(sub(self.e1, self.e3)))
     }
 }
@@ -216,12 +249,17 @@ pub fn quad_quad(a: &[V3; 4], na: V3, b: &[V3; 4], nb: V3) -> f64 {
     d
 }
 
-/// A piece `[s0,s1] × [t0,t1]` of surface `surface`.
+/// A piece `[s0,s1] × [t0,t1]` of surface `surface`. On a triangle patch (whose pieces are
+/// those of the four-way midpoint split, squares in (s, t)) it is half of that square: the
+/// lower-left half (s − s0) + (t − t0) ≤ h, or with `upper` the upper-right half
+/// (s1 − s) + (t1 − t) ≤ h, h = s1 − s0. Either is the image of the reference triangle of
+/// [`crate::math::triangle`] under its local coordinates [`Piece::local`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Piece {
     pub surface: usize,
     pub s: [f64; 2],
     pub t: [f64; 2],
+    pub upper: bool,
 }
 
 impl Piece {
@@ -230,10 +268,91 @@ impl Piece {
             surface,
             s: [0.0, 1.0],
             t: [0.0, 1.0],
+            upper: false,
         }
     }
+
+    /// A parallelogram's piece `[s0,s1] × [t0,t1]`.
+    pub fn rect(surface: usize, s: [f64; 2], t: [f64; 2]) -> Piece {
+        Piece {
+            surface,
+            s,
+            t,
+            upper: false,
+        }
+    }
+
+    /// Its corners, counter-clockwise; a triangle's three with the last repeated.
     pub fn corners(&self, quads: &[Parallelogram]) -> [V3; 4] {
-        quads[self.surface].piece(self.s, self.t)
+        let q = &quads[self.surface];
+        if !q.tri {
+            return q.piece(self.s, self.t);
+        }
+        let [a, b, c] = self.triangle();
+        let at = |p: [f64; 2]| q.at(p[0], p[1]);
+        [at(a), at(b), at(c), at(c)]
+    }
+
+    /// The (s, t) of a triangle piece's vertices, in the order of the reference triangle's.
+    pub fn triangle(&self) -> [[f64; 2]; 3] {
+        let (s, t) = (self.s, self.t);
+        if self.upper {
+            [[s[1], t[1]], [s[0], t[1]], [s[1], t[0]]]
+        } else {
+            [[s[0], t[0]], [s[1], t[0]], [s[0], t[1]]]
+        }
+    }
+
+    /// The local coordinates of (s, t) in a triangle piece: (0, 0) at its first vertex, the
+    /// reference triangle's (ŝ, t̂).
+    #[inline(always)]
+    pub fn local(&self, s: f64, t: f64) -> (f64, f64) {
+        let h = self.s[1] - self.s[0];
+        if self.upper {
+            ((self.s[1] - s) / h, (self.t[1] - t) / h)
+        } else {
+            ((s - self.s[0]) / h, (t - self.t[0]) / h)
+        }
+    }
+
+    /// (s, t) of the local coordinates (ŝ, t̂) of a triangle piece.
+    #[inline(always)]
+    pub fn at_local(&self, u: f64, v: f64) -> (f64, f64) {
+        let h = self.s[1] - self.s[0];
+        if self.upper {
+            (self.s[1] - u * h, self.t[1] - v * h)
+        } else {
+            (self.s[0] + u * h, self.t[0] + v * h)
+        }
+    }
+
+    /// Child `c` of the four-way midpoint split of a triangle piece, numbered as
+    /// [`crate::math::triangle::CHILDREN`]: the corner children keep the orientation, the
+    /// centre one (3) is turned by half a turn.
+    pub fn tri_child(&self, c: usize) -> Piece {
+        let (ms, mt) = (0.5 * (self.s[0] + self.s[1]), 0.5 * (self.t[0] + self.t[1]));
+        let lo_s = [self.s[0], ms];
+        let hi_s = [ms, self.s[1]];
+        let lo_t = [self.t[0], mt];
+        let hi_t = [mt, self.t[1]];
+        // in local coordinates the corner children sit at the origin, along ŝ and along t̂,
+        // and the centre child at the origin's square, turned
+        let (s, t, upper) = match (self.upper, c) {
+            (false, 0) => (lo_s, lo_t, false),
+            (false, 1) => (hi_s, lo_t, false),
+            (false, 2) => (lo_s, hi_t, false),
+            (false, _) => (lo_s, lo_t, true),
+            (true, 0) => (hi_s, hi_t, true),
+            (true, 1) => (lo_s, hi_t, true),
+            (true, 2) => (hi_s, lo_t, true),
+            (true, _) => (hi_s, hi_t, false),
+        };
+        Piece {
+            surface: self.surface,
+            s,
+            t,
+            upper,
+        }
     }
 }
 

@@ -35,10 +35,7 @@ pub struct Geometry {
 
 impl Geometry {
     pub fn new(quads: &[Quad]) -> Geometry {
-        let quads: Vec<Parallelogram> = quads
-            .iter()
-            .map(|q| Parallelogram::new(&q.corners))
-            .collect();
+        let quads: Vec<Parallelogram> = quads.iter().map(Parallelogram::of).collect();
         let n = quads.len();
         let mut facing = vec![false; n * n];
         for i in 0..n {
@@ -76,8 +73,8 @@ impl Geometry {
         for i in 0..n {
             for j in i + 1..n {
                 let (a, b) = (&self.quads[i], &self.quads[j]);
-                let ca = a.piece([0.0, 1.0], [0.0, 1.0]);
-                let cb = b.piece([0.0, 1.0], [0.0, 1.0]);
+                let ca = a.outline();
+                let cb = b.outline();
                 if quad_quad(&ca, a.n, &cb, b.n) <= 1e-9 * a.diameter().max(b.diameter()) {
                     out.push((i, j));
                 }
@@ -119,9 +116,7 @@ impl Geometry {
 /// Whether some corner of `b` is strictly in front of `a`.
 fn in_front(a: &Parallelogram, b: &Parallelogram) -> bool {
     let tol = 1e-12 * (a.diameter() + b.diameter());
-    b.piece([0.0, 1.0], [0.0, 1.0])
-        .iter()
-        .any(|&c| a.side(c) > tol)
+    b.outline().iter().any(|&c| a.side(c) > tol)
 }
 
 /// The accuracy of the projection method's cell pairs at `q` Gauss points per direction.
@@ -176,6 +171,7 @@ pub fn emission_coefficients(q: &Quad, area: f64, disc: Discretization) -> Vec<[
     for ct in 0..n {
         for cs in 0..n {
             let piece = Piece {
+                upper: false,
                 surface: 0,
                 s: cell(cs, n),
                 t: cell(ct, n),
@@ -189,6 +185,13 @@ pub fn emission_coefficients(q: &Quad, area: f64, disc: Discretization) -> Vec<[
 
 /// E ∫_{piece ∩ region} N_(q,p) dA for N orthonormal in the piece's area, exactly.
 pub fn piece_emission(q: &Quad, area: f64, piece: Piece, k: usize, out: &mut [[f64; 3]]) {
+    if q.triangle {
+        // E is constant on a triangle (no emission region): ∫ E N_0 dA = E √A_piece, and the
+        // other functions are orthogonal to the constant
+        let a = area * (piece.s[1] - piece.s[0]) * (piece.t[1] - piece.t[0]);
+        out[0] = q.material.emission.map(|e| e * a.sqrt());
+        return;
+    }
     let (rs, rt) = q.emission_region;
     let s = [piece.s[0].max(rs[0]), piece.s[1].min(rs[1])];
     let t = [piece.t[0].max(rt[0]), piece.t[1].min(rt[1])];
@@ -242,6 +245,7 @@ pub fn matrix(
             progress.check()?;
             let (i, a) = (row_block / (n * n), row_block % (n * n));
             let pa = Piece {
+                upper: false,
                 surface: i,
                 s: cell(a % n, n),
                 t: cell(a / n, n),
@@ -254,6 +258,7 @@ pub fn matrix(
                 }
                 for b in 0..n * n {
                     let pb = Piece {
+                        upper: false,
                         surface: j,
                         s: cell(b % n, n),
                         t: cell(b / n, n),
@@ -325,12 +330,14 @@ pub fn kernel_squares(
             for a in 0..cells * cells {
                 progress.check()?;
                 let pa = Piece {
+                    upper: false,
                     surface: i,
                     s: cell(a % cells, cells),
                     t: cell(a / cells, cells),
                 };
                 for b in 0..cells * cells {
                     let pb = Piece {
+                        upper: false,
                         surface: j,
                         s: cell(b % cells, cells),
                         t: cell(b / cells, cells),

@@ -12,6 +12,7 @@
 
 use crate::math::basis::legendre;
 use crate::math::quadrature::Rule;
+use crate::math::triangle::{TriangleBasis, TriangleRule};
 use crate::three_d::geometry::Piece;
 use crate::three_d::geometry::{
     add, cross, dot, norm, point_quad, quad_quad, scale, sub, Parallelogram, V3,
@@ -88,13 +89,16 @@ pub fn block(
     out: &mut [f64],
 ) -> u64 {
     let (qa, qb) = (&quads[a.surface], &quads[b.surface]);
+    // a triangle piece is half of its square of parameters, and its triangle half of the
+    // parallelogram: its area is area · ds · dt either way
     let area = |q: &Parallelogram, p: &Piece| q.area * (p.s[1] - p.s[0]) * (p.t[1] - p.t[0]);
+    // the rules integrate over (s, t); dA = jac ds dt
     let (k, scale) = match what {
         Integrand::Galerkin { k } => {
             assert!(k <= MAX_K);
-            (k, qa.area * qb.area / (area(qa, &a) * area(qb, &b)).sqrt())
+            (k, qa.jac * qb.jac / (area(qa, &a) * area(qb, &b)).sqrt())
         }
-        Integrand::Squared => (1, qa.area * qb.area),
+        Integrand::Squared => (1, qa.jac * qb.jac),
     };
     let ctx = Ctx {
         qa,
@@ -108,27 +112,106 @@ pub fn block(
         evaluations: std::cell::Cell::new(0),
         samples: std::cell::RefCell::new(Vec::new()),
     };
-    ctx.pair(Rect { s: a.s, t: a.t }, Rect { s: b.s, t: b.t }, 0, out);
+    ctx.pair(Rect::of(qa, a), Rect::of(qb, b), 0, out);
     ctx.evaluations.get()
 }
 
-#[derive(Debug, Clone, Copy)]
+/// A part of a piece over which a rule runs: a rectangle of parameters, or on a triangle
+/// patch the half of one that a triangle piece is ([`Piece`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Rect {
     s: [f64; 2],
     t: [f64; 2],
+    tri: bool,
+    upper: bool,
 }
 
 impl Rect {
+    fn of(q: &Parallelogram, p: Piece) -> Rect {
+        Rect {
+            s: p.s,
+            t: p.t,
+            tri: q.tri,
+            upper: p.upper,
+        }
+    }
+
+    fn piece(&self) -> Piece {
+        Piece {
+            surface: 0,
+            s: self.s,
+            t: self.t,
+            upper: self.upper,
+        }
+    }
+
+    /// Four parts: the quarters of a rectangle (s first), the midpoint split of a triangle.
+    fn quarters(&self) -> [Rect; 4] {
+        if self.tri {
+            return std::array::from_fn(|c| {
+                let p = self.piece().tri_child(c);
+                Rect {
+                    s: p.s,
+                    t: p.t,
+                    tri: true,
+                    upper: p.upper,
+                }
+            });
+        }
+        let [a, b] = self.halves_s();
+        let [a0, a1] = a.halves_t();
+        let [b0, b1] = b.halves_t();
+        [a0, a1, b0, b1]
+    }
+
+    /// The points (s, t) and weights (in ds dt) of a rule of q × q points: tensor Gauss on a
+    /// rectangle (exact to degree 2q − 1 in each variable), the collapsed rule of degree
+    /// 2q − 2 on a triangle (also q² points).
+    fn rule(&self, q: usize, mut f: impl FnMut(f64, f64, f64)) {
+        if self.tri {
+            let h = self.s[1] - self.s[0];
+            let measure = 0.5 * h * h;
+            let rule = TriangleRule::for_degree(2 * q - 2);
+            let p = self.piece();
+            for (x, w) in rule.points.iter().zip(&rule.weights) {
+                let (s, t) = p.at_local(x[0], x[1]);
+                f(s, t, w * measure);
+            }
+            return;
+        }
+        let rule = Rule::gauss(q);
+        for (t, wt) in rule.mapped(self.t[0], self.t[1]) {
+            for (s, ws) in rule.mapped(self.s[0], self.s[1]) {
+                f(s, t, ws * wt);
+            }
+        }
+    }
+
+    /// The point of the part nearest to (s, t) in parameters (on a triangle, near enough:
+    /// clamped to its square, then pulled onto its diagonal).
+    fn clamp(&self, s: f64, t: f64) -> (f64, f64) {
+        let (s, t) = (s.clamp(self.s[0], self.s[1]), t.clamp(self.t[0], self.t[1]));
+        if !self.tri {
+            return (s, t);
+        }
+        let p = self.piece();
+        let (u, v) = p.local(s, t);
+        if u + v <= 1.0 {
+            return (s, t);
+        }
+        p.at_local(u / (u + v), v / (u + v))
+    }
+
     fn halves_s(&self) -> [Rect; 2] {
         let m = 0.5 * (self.s[0] + self.s[1]);
         [
             Rect {
                 s: [self.s[0], m],
-                t: self.t,
+                ..*self
             },
             Rect {
                 s: [m, self.s[1]],
-                t: self.t,
+                ..*self
             },
         ]
     }
@@ -136,12 +219,12 @@ impl Rect {
         let m = 0.5 * (self.t[0] + self.t[1]);
         [
             Rect {
-                s: self.s,
                 t: [self.t[0], m],
+                ..*self
             },
             Rect {
-                s: self.s,
                 t: [m, self.t[1]],
+                ..*self
             },
         ]
     }
@@ -178,12 +261,32 @@ struct Samples {
 const KEPT_SAMPLES: usize = 8;
 
 fn corners(q: &Parallelogram, r: Rect) -> [V3; 4] {
+    if r.tri {
+        let [a, b, c] = r.piece().triangle().map(|p| q.at(p[0], p[1]));
+        return [a, b, c, c];
+    }
     q.piece(r.s, r.t)
 }
 
-/// The longer diagonal of a parallelogram given by its corners.
+/// The longer diagonal of a parallelogram given by its corners; the longest side of a
+/// triangle (its third corner repeated).
 pub fn diameter(c: &[V3; 4]) -> f64 {
+    if c[2] == c[3] {
+        return norm(sub(c[1], c[0]))
+            .max(norm(sub(c[2], c[0])))
+            .max(norm(sub(c[2], c[1])));
+    }
     norm(sub(c[2], c[0])).max(norm(sub(c[3], c[1])))
+}
+
+/// A ball around a piece given by its corners: (centre, radius).
+fn ball(c: &[V3; 4]) -> (V3, f64) {
+    if c[2] == c[3] {
+        let m = scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0);
+        let r = (0..3).map(|i| norm(sub(c[i], m))).fold(0.0, f64::max);
+        return (m, r);
+    }
+    (scale(add(c[0], c[2]), 0.5), 0.5 * diameter(c))
 }
 
 impl Ctx<'_> {
@@ -191,6 +294,17 @@ impl Ctx<'_> {
     fn basis(&self, of_a: bool, s: f64, t: f64, w: f64, out: &mut [f64]) {
         let k = self.k;
         let p = if of_a { &self.a } else { &self.b };
+        let tri = if of_a { self.qa.tri } else { self.qb.tri };
+        if tri {
+            // the orthonormal polynomials of total degree < k, the rest of the k² slots zero
+            let basis = TriangleBasis::of_order(k - 1);
+            let n = crate::math::triangle::dimension(k - 1);
+            let (u, v) = p.local(s, t);
+            basis.eval(u, v, &mut out[..n]);
+            out[..n].iter_mut().for_each(|x| *x *= w);
+            out[n..k * k].fill(0.0);
+            return;
+        }
         let mut ps = [0.0; MAX_K];
         let mut pt = [0.0; MAX_K];
         legendre((s - p.s[0]) / (p.s[1] - p.s[0]), &mut ps[..k]);
@@ -209,8 +323,7 @@ impl Ctx<'_> {
         let cb = corners(self.qb, rb);
         let size = diameter(&ca).max(diameter(&cb));
         // most pairs are far enough that their fewest points do, which a lower bound of the
-        // distance (between the pieces' circumscribed balls) shows without the exact distance
-        let ball = |c: &[V3; 4]| (scale(add(c[0], c[2]), 0.5), 0.5 * diameter(c));
+        // distance (between the pieces' enclosing balls) shows without the exact distance
         let ((ma, ra_), (mb, rb_)) = (ball(&ca), ball(&cb));
         let below = norm(sub(ma, mb)) - ra_ - rb_;
         if below >= size && points(below, size, self.acc.digits) <= self.acc.q_min {
@@ -223,13 +336,9 @@ impl Ctx<'_> {
                 .min(MAX_Q);
             self.far(ra, rb, q, out);
         } else if dist > 0.5 * size && depth < 2 {
-            for ha in ra.halves_s() {
-                for a in ha.halves_t() {
-                    for hb in rb.halves_s() {
-                        for b in hb.halves_t() {
-                            self.pair(a, b, depth + 1, out);
-                        }
-                    }
+            for a in ra.quarters() {
+                for b in rb.quarters() {
+                    self.pair(a, b, depth + 1, out);
                 }
             }
         } else {
@@ -239,12 +348,11 @@ impl Ctx<'_> {
 
     /// The samples of `rb` at q × q points, made once per block.
     fn with_samples<R>(&self, rb: Rect, q: usize, f: impl FnOnce(&Samples) -> R) -> R {
-        let same = |x: &Samples| x.q == q && x.rect.s == rb.s && x.rect.t == rb.t;
+        let same = |x: &Samples| x.q == q && x.rect == rb;
         if let Some(hit) = self.samples.borrow().iter().find(|x| same(x)) {
             return f(hit);
         }
         let kk = self.k * self.k;
-        let rule = Rule::gauss(q);
         let mut made = Samples {
             rect: rb,
             q,
@@ -252,15 +360,13 @@ impl Ctx<'_> {
             weights: Vec::with_capacity(q * q),
             phi: vec![0.0; q * q * kk],
         };
-        for (t, wt) in rule.mapped(rb.t[0], rb.t[1]) {
-            for (s, ws) in rule.mapped(rb.s[0], rb.s[1]) {
-                let n = made.weights.len();
-                self.basis(false, s, t, ws * wt, &mut made.phi[n * kk..(n + 1) * kk]);
-                let y = self.qb.at(s, t);
-                (0..3).for_each(|i| made.points[i].push(y[i]));
-                made.weights.push(ws * wt);
-            }
-        }
+        rb.rule(q, |s, t, w| {
+            let n = made.weights.len();
+            self.basis(false, s, t, w, &mut made.phi[n * kk..(n + 1) * kk]);
+            let y = self.qb.at(s, t);
+            (0..3).for_each(|i| made.points[i].push(y[i]));
+            made.weights.push(w);
+        });
         let out = f(&made);
         let mut kept = self.samples.borrow_mut();
         if kept.len() < KEPT_SAMPLES {
@@ -288,28 +394,25 @@ impl Ctx<'_> {
     fn far(&self, ra: Rect, rb: Rect, q: usize, out: &mut [f64]) {
         let kk = self.k * self.k;
         self.with_samples(rb, q, |b| {
-            let rule = Rule::gauss(q);
             let mut kv = [0.0; MAX_Q * MAX_Q];
             let kv = &mut kv[..b.weights.len()];
             let mut phi_a = [0.0; MAX_K * MAX_K];
             let mut tmp = [0.0; MAX_K * MAX_K];
-            for (t, wt) in rule.mapped(ra.t[0], ra.t[1]) {
-                for (s, ws) in rule.mapped(ra.s[0], ra.s[1]) {
-                    self.kernels(self.qa.at(s, t), &b.points, kv);
-                    tmp[..kk].fill(0.0);
-                    for (kj, phi) in kv.iter().zip(b.phi.chunks_exact(kk)) {
-                        for c in 0..kk {
-                            tmp[c] += kj * phi[c];
-                        }
-                    }
-                    self.basis(true, s, t, ws * wt * self.scale, &mut phi_a[..kk]);
-                    for r in 0..kk {
-                        for c in 0..kk {
-                            out[r * kk + c] += phi_a[r] * tmp[c];
-                        }
+            ra.rule(q, |s, t, w| {
+                self.kernels(self.qa.at(s, t), &b.points, kv);
+                tmp[..kk].fill(0.0);
+                for (kj, phi) in kv.iter().zip(b.phi.chunks_exact(kk)) {
+                    for c in 0..kk {
+                        tmp[c] += kj * phi[c];
                     }
                 }
-            }
+                self.basis(true, s, t, w * self.scale, &mut phi_a[..kk]);
+                for r in 0..kk {
+                    for c in 0..kk {
+                        out[r * kk + c] += phi_a[r] * tmp[c];
+                    }
+                }
+            });
         })
     }
 
@@ -326,6 +429,14 @@ impl Ctx<'_> {
                 .fold(f64::INFINITY, f64::min)
         };
         let d = quad_quad(&ca, self.qa.n, cb, self.qb.n);
+        if ra.tri {
+            // a triangle is split in four while the target is nearer than it is wide
+            let size = diameter(&ca);
+            if depth < self.acc.outer_depth && (d < size || vertex(&ra) < size) {
+                return self.quarters(ra, rb, cb, depth, out);
+            }
+            return self.outer_rule(ra, rb, d, size, out);
+        }
         let dv = vertex(&ra);
         let ext_s = norm(sub(ca[1], ca[0]));
         let ext_t = norm(sub(ca[3], ca[0]));
@@ -356,37 +467,36 @@ impl Ctx<'_> {
                 (false, false) => {}
             }
         }
+        self.outer_rule(ra, rb, d, ext_s.max(ext_t), out)
+    }
+
+    /// The outer rule over `ra` at distance `d` from `rb`, each point with its inner integral.
+    fn outer_rule(&self, ra: Rect, rb: Rect, d: f64, size: f64, out: &mut [f64]) {
         let kk = self.k * self.k;
-        let size = ext_s.max(ext_t);
         let q = points(d, size, self.acc.digits)
             .max(self.acc.q_min)
             .clamp(2, 6);
-        let rule = Rule::gauss(q);
         let mut tmp = [0.0; MAX_K * MAX_K];
         let mut phi_a = [0.0; MAX_K * MAX_K];
-        for (t, wt) in rule.mapped(ra.t[0], ra.t[1]) {
-            for (s, ws) in rule.mapped(ra.s[0], ra.s[1]) {
-                let x = self.qa.at(s, t);
-                if self.qb.side(x) <= 0.0 {
-                    continue;
-                }
-                tmp[..kk].fill(0.0);
-                self.inner_subtracted(x, rb, &mut tmp[..kk]);
-                self.basis(true, s, t, ws * wt * self.scale, &mut phi_a[..kk]);
-                for r in 0..kk {
-                    for c in 0..kk {
-                        out[r * kk + c] += phi_a[r] * tmp[c];
-                    }
+        ra.rule(q, |s, t, w| {
+            let x = self.qa.at(s, t);
+            if self.qb.side(x) <= 0.0 {
+                return;
+            }
+            tmp[..kk].fill(0.0);
+            self.inner_subtracted(x, rb, &mut tmp[..kk]);
+            self.basis(true, s, t, w * self.scale, &mut phi_a[..kk]);
+            for r in 0..kk {
+                for c in 0..kk {
+                    out[r * kk + c] += phi_a[r] * tmp[c];
                 }
             }
-        }
+        });
     }
 
     fn quarters(&self, ra: Rect, rb: Rect, cb: &[V3; 4], depth: u32, out: &mut [f64]) {
-        for h in ra.halves_s() {
-            for r in h.halves_t() {
-                self.outer(r, rb, cb, depth + 1, out);
-            }
+        for r in ra.quarters() {
+            self.outer(r, rb, cb, depth + 1, out);
         }
     }
 
@@ -399,10 +509,10 @@ impl Ctx<'_> {
         }
         let cb = corners(self.qb, rb);
         self.evaluations.set(self.evaluations.get() + 1);
-        let f = point_polygon(x, self.qa.n, &cb) / self.qb.area;
+        let f = point_polygon(x, self.qa.n, &cb) / self.qb.jac;
         let kk = self.k * self.k;
         let (s, t) = self.qb.params(x);
-        let (s, t) = (s.clamp(rb.s[0], rb.s[1]), t.clamp(rb.t[0], rb.t[1]));
+        let (s, t) = rb.clamp(s, t);
         let mut base = [0.0; MAX_K * MAX_K];
         self.basis(false, s, t, 1.0, &mut base[..kk]);
         for c in 0..kk {
@@ -419,10 +529,8 @@ impl Ctx<'_> {
         let diam = diameter(&cb);
         let d = point_quad(x, &cb, self.qb.n);
         if d < diam && depth < self.acc.inner_depth {
-            for h in rb.halves_s() {
-                for r in h.halves_t() {
-                    self.inner(x, r, depth + 1, base, out);
-                }
+            for r in rb.quarters() {
+                self.inner(x, r, depth + 1, base, out);
             }
             return;
         }
@@ -621,6 +729,7 @@ mod tests {
         let (a, b) = (
             Piece::whole(0),
             Piece {
+                upper: false,
                 surface: 1,
                 s: [0.0, 0.5],
                 t: [0.5, 1.0],

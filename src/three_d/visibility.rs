@@ -27,7 +27,7 @@ use crate::three_d::steps::{Steps, CELLS, STEP};
 /// edges with `q`'s. The per-element test runs for every link, where a dozen rays cost less
 /// than the ~100 axes of the thorough test; the per-surface test runs once.
 pub fn may_occlude(points: &[V3; 8], thorough: bool, q: &Parallelogram) -> bool {
-    let qc = q.piece([0.0, 1.0], [0.0, 1.0]);
+    let qc = q.outline();
     // the tolerance's scale: q's size plus the points' bounding box
     let (mut lo, mut hi) = (points[0], points[0]);
     for p in &points[1..] {
@@ -297,6 +297,24 @@ pub fn visible_fraction(
     visible_fraction_over(bvh, a, None, b, n, seed, rays)
 }
 
+/// The point (s, t) of piece `p` at (u, v) of its unit square: on a triangle piece, the
+/// square folded onto the triangle along its diagonal (uniform on the triangle).
+#[inline(always)]
+fn at(q: &Parallelogram, p: &Piece, u: f64, v: f64) -> (f64, f64) {
+    if q.tri {
+        let (u, v) = if u + v > 1.0 {
+            (1.0 - u, 1.0 - v)
+        } else {
+            (u, v)
+        };
+        return p.at_local(u, v);
+    }
+    (
+        p.s[0] + (p.s[1] - p.s[0]) * u,
+        p.t[0] + (p.t[1] - p.t[0]) * v,
+    )
+}
+
 /// [`visible_fraction`] over the pairs whose point on `a` is not `covered`: the fraction of
 /// the light that reaches the exposed part of `a` ([`crate::three_d::cover`]).
 pub fn visible_fraction_over(
@@ -330,10 +348,12 @@ pub fn visible_fraction_over(
             (ia as f64 + rng.next_f64()) * cell,
             (ja as f64 + rng.next_f64()) * cell,
         );
-        let sa = a.s[0] + (a.s[1] - a.s[0]) * ua;
-        let ta = a.t[0] + (a.t[1] - a.t[0]) * va;
-        let sb = b.s[0] + (b.s[1] - b.s[0]) * (ib as f64 + rng.next_f64()) * cell;
-        let tb = b.t[0] + (b.t[1] - b.t[0]) * (jb as f64 + rng.next_f64()) * cell;
+        let (ub, vb) = (
+            (ib as f64 + rng.next_f64()) * cell,
+            (jb as f64 + rng.next_f64()) * cell,
+        );
+        let (sa, ta) = at(qa, &a, ua, va);
+        let (sb, tb) = at(qb, &b, ub, vb);
         if covered.is_some_and(|m| m.covered(sa, ta)) {
             continue;
         }
@@ -370,6 +390,14 @@ pub fn visible_fraction_over(
     // one value per cell once the stratified points put four in each; a cell no facing
     // pair reached keeps its quarter's
     let fine = n >= 2 * STEP;
+    // a triangle receiver takes the whole fraction: its step cells would be those of the
+    // square its points are folded from
+    if qa.tri {
+        return Seen {
+            whole,
+            cells: [whole; CELLS],
+        };
+    }
     let cells = std::array::from_fn(|c| {
         if fine && total[c] > 0.0 {
             seen[c] / total[c]
@@ -419,11 +447,13 @@ mod tests {
         assert_eq!(v, w);
         // a piece under the blocker sees nothing of the piece above it
         let a = Piece {
+            upper: false,
             surface: 0,
             s: [0.4, 0.5],
             t: [0.4, 0.5],
         };
         let b = Piece {
+            upper: false,
             surface: 1,
             s: [0.4, 0.5],
             t: [0.5, 0.6],

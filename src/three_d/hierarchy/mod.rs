@@ -25,6 +25,7 @@ pub mod tree;
 
 use crate::math::basis::Filters;
 use crate::math::field::{Field, Leaf};
+use crate::math::triangle::TriangleBasis;
 use crate::methods::solution::{JobError, Solution};
 use crate::methods::solve::Solved;
 use crate::progress::{Cancelled, Phase, Progress};
@@ -142,16 +143,18 @@ impl<'g> Hierarchy<'g> {
             sizing,
             threshold: epsilon * emax,
             typical: 0.0,
+            // surfaces as the document names them: a mesh's triangles count once
             indirect: (0..quads.len())
                 .map(|i| {
-                    (0..quads.len())
+                    let facing: std::collections::HashSet<&str> = (0..quads.len())
                         .filter(|&j| {
                             j != i
                                 && geo.facing(i, j)
                                 && quads[j].material.emission.iter().all(|&e| e == 0.0)
                         })
-                        .count()
-                        .max(1) as f64
+                        .map(|j| quads[j].name.as_str())
+                        .collect();
+                    facing.len().max(1) as f64
                 })
                 .collect(),
             rho: quads
@@ -408,6 +411,21 @@ impl<'g> Hierarchy<'g> {
         let mut b = [[0.0; 3]; MAX_KK];
         let mut child_down = [[0.0; 3]; MAX_KK];
         let mut masked = [[0.0; 3]; MAX_KK];
+        if self.geo.quads[el.piece.surface].tri {
+            // a triangle's children by its own two-scale relation (never covered)
+            let basis = TriangleBasis::of_order(self.k - 1);
+            for i in 0..4u32 {
+                basis.push(&total[..kk], i as usize, &mut child_down[..kk]);
+                self.push_pull(first + i, &child_down[..kk], change, norm);
+                basis.pull(
+                    &self.elements[(first + i) as usize].b,
+                    i as usize,
+                    &mut b[..kk],
+                );
+            }
+            self.elements[e as usize].b.copy_from_slice(&b[..kk]);
+            return;
+        }
         for i in 0..4u32 {
             let (dt, ds) = ((i / 2) as usize, (i % 2) as usize);
             push(self.filters, &total[..kk], dt, ds, &mut child_down[..kk]);
@@ -443,7 +461,11 @@ impl<'g> Hierarchy<'g> {
                 let res = 1usize << self.levels[s];
                 let mut leaves = Vec::new();
                 self.collect_leaves(s as u32, &pick, &mut leaves);
-                Field::from_leaves(2, order, res, leaves)
+                if self.geo.quads[s].tri {
+                    Field::triangle(order, res, leaves)
+                } else {
+                    Field::from_leaves(2, order, res, leaves)
+                }
             })
             .collect()
     }
@@ -456,6 +478,7 @@ impl<'g> Hierarchy<'g> {
                 s: el.piece.s,
                 t: el.piece.t,
                 coeffs: pick(el).iter().map(|v| v.map(|x| x * f)).collect(),
+                upper: el.piece.upper,
             });
             return;
         }
@@ -621,9 +644,18 @@ pub fn solve(
         .collect();
     sorted.par_sort_unstable_by(|a, b| b.total_cmp(a));
     // Σ‖block‖² per pair of surfaces, for eq. (5) by Parseval over the link blocks
+    // (none on a scene with triangles, where eq. (5) is not measured)
     let surfaces = h.quads.len();
-    let mut kept_squares = vec![0.0; surfaces * surfaces];
-    for l in &h.links {
+    let with_triangles = h.geo.quads.iter().any(|q| q.tri);
+    let mut kept_squares = vec![
+        0.0;
+        if with_triangles {
+            0
+        } else {
+            surfaces * surfaces
+        }
+    ];
+    for l in h.links.iter().filter(|_| !with_triangles) {
         let (r, s) = (&h.elements[l.recv as usize], &h.elements[l.src as usize]);
         kept_squares[r.piece.surface * surfaces + s.piece.surface] +=
             l.block.iter().map(|v| v * v).sum::<f64>();

@@ -29,6 +29,7 @@
 
 use super::tree::{push, Element, NONE};
 use super::Hierarchy;
+use crate::math::triangle::TriangleBasis;
 use crate::progress::{Cancelled, Progress};
 use crate::three_d::congruence::Congruence;
 use crate::three_d::cover::Exposure;
@@ -129,6 +130,7 @@ impl Hierarchy<'_> {
         let el = &self.elements[e as usize];
         ((el.piece.surface as u64) << 48)
             | ((el.level as u64) << 40)
+            | (u64::from(el.piece.upper) << 39)
             | ((el.cell[1] as u64) << 20)
             | el.cell[0] as u64
     }
@@ -144,8 +146,8 @@ impl Hierarchy<'_> {
         let (er, es) = (&self.elements[r as usize], &self.elements[s as usize]);
         let qr = &self.geo.quads[er.piece.surface];
         let qs = &self.geo.quads[es.piece.surface];
-        let ca = qr.piece(er.piece.s, er.piece.t);
-        let cb = qs.piece(es.piece.s, es.piece.t);
+        let ca = er.piece.corners(&self.geo.quads);
+        let cb = es.piece.corners(&self.geo.quads);
         const AT: [f64; 3] = [0.01, 0.5, 0.99];
         let p = &er.piece;
         let mut f: f64 = 0.0;
@@ -196,12 +198,18 @@ impl Hierarchy<'_> {
         let first = self.elements.len() as u32;
         let parent = self.elements[e as usize].clone();
         let kk = self.k * self.k;
+        if self.geo.quads[parent.piece.surface].tri {
+            self.split_triangle(e, &parent);
+            self.elements[e as usize].children = first;
+            return first;
+        }
         for dt in 0..2 {
             for ds in 0..2 {
                 let p = parent.piece;
                 let ms = 0.5 * (p.s[0] + p.s[1]);
                 let mt = 0.5 * (p.t[0] + p.t[1]);
                 let piece = Piece {
+                    upper: false,
                     surface: p.surface,
                     s: if ds == 0 { [p.s[0], ms] } else { [ms, p.s[1]] },
                     t: if dt == 0 { [p.t[0], mt] } else { [mt, p.t[1]] },
@@ -243,6 +251,43 @@ impl Hierarchy<'_> {
         }
         self.elements[e as usize].children = first;
         first
+    }
+
+    /// The four children of the midpoint split of a triangle element, in the order of
+    /// [`crate::math::triangle::CHILDREN`], with B pushed exactly by the triangle basis' two-
+    /// scale relation.
+    fn split_triangle(&mut self, id: u32, parent: &Element) {
+        let kk = self.k * self.k;
+        let basis = TriangleBasis::of_order(self.k - 1);
+        let quad = &self.quads[parent.piece.surface];
+        for c in 0..4 {
+            let piece = parent.piece.tri_child(c);
+            let mut b = vec![[0.0; 3]; kk];
+            basis.push(&parent.b, c, &mut b);
+            let mut e = vec![[0.0; 3]; kk];
+            crate::three_d::projection::piece_emission(
+                quad,
+                self.geo.quads[piece.surface].area,
+                piece,
+                self.k,
+                &mut e,
+            );
+            let at = |x: f64| (x * f64::from(1u32 << (parent.level + 1))).round() as u32;
+            self.elements.push(Element {
+                exposure: Exposure::Open,
+                peak: peak_emission(quad, piece),
+                piece,
+                level: parent.level + 1,
+                cell: [at(piece.s[0]), at(piece.t[0])],
+                parent: id,
+                children: NONE,
+                area: parent.area / 4.0,
+                e,
+                b,
+                h: vec![[0.0; 3]; kk],
+                detail: 0.0,
+            });
+        }
     }
 
     /// Whether the kernel from source `s` reaches the covered part of receiver `r`: only

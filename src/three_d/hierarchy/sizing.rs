@@ -45,9 +45,14 @@ impl Sizing {
         }
     }
 
-    /// The finest quadtree level of surface `q`.
+    /// The finest quadtree level of surface `q`: of a parallelogram by its longer side (and
+    /// `resolution`, when given), of a triangle by its longest side.
     pub fn finest_level(&self, q: &Parallelogram) -> u32 {
-        let edge = norm(q.e1).max(norm(q.e3));
+        let edge = if q.tri {
+            q.diameter()
+        } else {
+            norm(q.e1).max(norm(q.e3))
+        };
         let ratio = edge / self.min_element_size;
         let by_size = if ratio >= 1.0 {
             (ratio.log2().floor() as u32).min(MAX_LEVEL)
@@ -55,8 +60,8 @@ impl Sizing {
             0
         };
         match self.resolution {
-            Some(r) => by_size.min(r.trailing_zeros()),
-            None => by_size,
+            Some(r) if !q.tri => by_size.min(r.trailing_zeros()),
+            _ => by_size,
         }
     }
 }
@@ -66,7 +71,7 @@ fn scene_diagonal(quads: &[Parallelogram]) -> f64 {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for q in quads {
-        for c in q.piece([0.0, 1.0], [0.0, 1.0]) {
+        for c in q.outline() {
             for i in 0..3 {
                 lo[i] = lo[i].min(c[i]);
                 hi[i] = hi[i].max(c[i]);
