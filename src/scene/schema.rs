@@ -72,13 +72,14 @@ pub enum SceneKinds {
         #[schema(min_items = 1)]
         surfaces: Vec<Segment>,
     },
-    /// 3D: the same with cosθx cosθy / (π r²) over parallelograms; B in W/m².
+    /// 3D: the same with cosθx cosθy / (π r²) over parallelograms, triangles and meshes; B in
+    /// W/m².
     #[serde(rename = "3d")]
     ThreeD {
         #[serde(default)]
         #[schema(nullable = false)]
         name: Option<String>,
-        /// 1 to `max_surfaces` parallelograms.
+        /// 1 to `max_surfaces` surfaces, with at most `max_triangles` triangles in all.
         #[schema(min_items = 1)]
         surfaces: Vec<Quad>,
     },
@@ -120,16 +121,26 @@ pub struct Segment {
     pub emission_region: Option<UnitInterval>,
 }
 
-/// A 3D surface: the parallelogram p(s,t) = p0 + s(p1 − p0) + t(p3 − p0), front normal
-/// (p1 − p0) × (p3 − p0).
+/// A 3D surface with exactly one of `corners`, `triangle`, `mesh`: the parallelogram
+/// p(s,t) = p0 + s(p1 − p0) + t(p3 − p0), front normal (p1 − p0) × (p3 − p0); a triangle
+/// (s, t ≥ 0, s + t ≤ 1 of p0 + s(p1 − p0) + t(p2 − p0)); or many triangles sharing one
+/// material.
 #[derive(Debug, Clone, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Quad {
     pub name: SurfaceName,
     /// `[p0, p1, p2, p3]`, counter-clockwise seen from the front, p0 + p2 = p1 + p3 within
     /// 1e-6 of the size, of non-zero area.
-    #[schema(min_items = 4, max_items = 4)]
-    pub corners: [Point; 4],
+    #[serde(default)]
+    #[schema(nullable = false, min_items = 4, max_items = 4)]
+    pub corners: Option<[Point; 4]>,
+    /// `[p0, p1, p2]`, counter-clockwise seen from the front, of non-zero area.
+    #[serde(default)]
+    #[schema(nullable = false, min_items = 3, max_items = 3)]
+    pub triangle: Option<[Point; 3]>,
+    #[serde(default)]
+    #[schema(nullable = false)]
+    pub mesh: Option<Mesh>,
     pub reflectance: Reflectance,
     #[serde(default)]
     #[schema(nullable = false)]
@@ -137,6 +148,18 @@ pub struct Quad {
     #[serde(default)]
     #[schema(nullable = false)]
     pub emission_region: Option<Region>,
+}
+
+/// Triangles that share one reflectance and emission (an object of a model).
+#[derive(Debug, Clone, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Mesh {
+    #[schema(min_items = 1)]
+    pub positions: Vec<Point>,
+    /// 0-based indices into `positions`, each triangle counter-clockwise seen from its front,
+    /// of non-zero area.
+    #[schema(min_items = 1)]
+    pub triangles: Vec<[u64; 3]>,
 }
 
 /// The part of a parallelogram's parameter domain that emits.
@@ -286,6 +309,10 @@ pub struct Output {
     #[serde(default)]
     #[schema(nullable = false, minimum = 0, maximum = 100000)]
     pub coefficients: Option<u64>,
+    /// 3d: also list B at the positions of `triangle` and `mesh` surfaces. Default false.
+    #[serde(default)]
+    #[schema(nullable = false)]
+    pub vertices: Option<bool>,
 }
 
 /// The main PNG. Width × height at most `max_image_pixels`.

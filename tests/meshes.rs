@@ -1,0 +1,294 @@
+//! Triangle and mesh surfaces (scene.md): closed meshes against B = E/(1 − ρ), the Cornell
+//! box made of triangles against the same box of parallelograms, B at the vertices, and every
+//! error of a mesh with its path.
+
+mod support;
+
+use serde_json::{json, Value};
+use support::{job, run, scene_file};
+use wavrad::scene::{parse_value, Limits};
+
+/// The inside of the unit cube as one mesh of 12 triangles, facing inward.
+fn cube_mesh() -> Value {
+    let positions: Vec<[f64; 3]> = (0..8)
+        .map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64])
+        .collect();
+    // each face's corners counter-clockwise seen from inside
+    let faces = [
+        [0, 1, 3, 2], // z = 0, normal +z
+        [4, 6, 7, 5], // z = 1, normal −z
+        [0, 4, 5, 1], // y = 0, normal +y
+        [2, 3, 7, 6], // y = 1, normal −y
+        [0, 2, 6, 4], // x = 0, normal +x
+        [1, 5, 7, 3], // x = 1, normal −x
+    ];
+    let triangles: Vec<[usize; 3]> = faces
+        .iter()
+        .flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]])
+        .collect();
+    json!({"positions": positions, "triangles": triangles})
+}
+
+/// An icosphere of radius 1 subdivided `n` times (20 · 4ⁿ triangles), facing inward.
+fn icosphere(n: usize) -> Value {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut p: Vec<[f64; 3]> = vec![
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ];
+    let unit = |v: [f64; 3]| {
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        v.map(|x| x / l)
+    };
+    p.iter_mut().for_each(|v| *v = unit(*v));
+    let mut tris: Vec<[usize; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..n {
+        let mut mid = std::collections::HashMap::new();
+        let mut next = Vec::new();
+        for t in &tris {
+            let mut m = [0; 3];
+            for e in 0..3 {
+                let (a, b) = (t[e].min(t[(e + 1) % 3]), t[e].max(t[(e + 1) % 3]));
+                m[e] = *mid.entry((a, b)).or_insert_with(|| {
+                    let (x, y) = (p[a], p[b]);
+                    p.push(unit([x[0] + y[0], x[1] + y[1], x[2] + y[2]]));
+                    p.len() - 1
+                });
+            }
+            next.extend([
+                [t[0], m[0], m[2]],
+                [t[1], m[1], m[0]],
+                [t[2], m[2], m[1]],
+                [m[0], m[1], m[2]],
+            ]);
+        }
+        tris = next;
+    }
+    // the outward-wound icosahedron, turned inward
+    let inward: Vec<[usize; 3]> = tris.iter().map(|t| [t[0], t[2], t[1]]).collect();
+    json!({"positions": p, "triangles": inward})
+}
+
+fn furnace(mesh: Value, e: f64, rho: f64) -> Value {
+    json!({
+        "scene": {"kind": "3d", "surfaces": [
+            {"name": "inside", "mesh": mesh, "reflectance": rho, "emission": e}
+        ]},
+        "solver": {"method": "hierarchical", "order": 1},
+        "output": {"image": {"width": 32, "height": 32}, "vertices": true}
+    })
+}
+
+/// A closed mesh seen from inside with uniform E and ρ is a furnace: B = E/(1 − ρ) on every
+/// triangle and at every vertex, to the solver's tolerance.
+#[test]
+fn closed_meshes_are_furnaces() {
+    for (name, mesh, count) in [("cube", cube_mesh(), 12), ("icosphere", icosphere(2), 320)] {
+        let (e, rho) = (1.0, 0.5);
+        let want = e / (1.0 - rho);
+        let o = run(furnace(mesh, e, rho));
+        let s = &o.result.surfaces[0];
+        assert_eq!(s.cells.len(), count, "{name}: one cell per triangle");
+        for (i, c) in s.cells.iter().enumerate() {
+            for v in c {
+                assert!((v - want).abs() < 1e-3 * want, "{name} triangle {i}: {v}");
+            }
+        }
+        // a vertex is a point value of the order-1 polynomials, at the cube's corners and
+        // edges where the kernel is singular: 1 % there (means converge faster than points)
+        let vertices = s.vertices.as_ref().expect("vertices asked for");
+        for (i, c) in vertices.iter().enumerate() {
+            for v in c {
+                assert!((v - want).abs() < 1e-2 * want, "{name} vertex {i}: {v}");
+            }
+        }
+        assert!(
+            (s.mean[0] - want).abs() < 1e-3 * want,
+            "{name}: {:?}",
+            s.mean
+        );
+    }
+}
+
+fn errors(doc: Value, limits: &Limits) -> Vec<String> {
+    match parse_value(&doc, limits) {
+        Ok(_) => Vec::new(),
+        Err(e) => e.0.into_iter().map(|e| e.path).collect(),
+    }
+}
+
+fn one_surface(surface: Value) -> Value {
+    json!({
+        "scene": {"kind": "3d", "surfaces": [surface]},
+        "solver": {"method": "hierarchical"}
+    })
+}
+
+#[test]
+fn every_mesh_error_has_its_path() {
+    let limits = Limits::default();
+    let mesh = |positions: Value, triangles: Value| {
+        one_surface(json!({"name": "m", "emission": 1, "reflectance": 0.5,
+            "mesh": {"positions": positions, "triangles": triangles}}))
+    };
+    let square = json!([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]);
+    assert_eq!(
+        errors(mesh(square.clone(), json!([[0, 1, 2], [0, 2, 7]])), &limits),
+        ["/scene/surfaces/0/mesh/triangles/1/2"]
+    );
+    assert_eq!(
+        errors(mesh(square.clone(), json!([[0, 1, 2], [0, 1, 1]])), &limits),
+        ["/scene/surfaces/0/mesh/triangles/1"]
+    );
+    assert_eq!(
+        errors(
+            mesh(
+                json!([[0, 0, 0], [1, "x", 0], [0, 1, 0]]),
+                json!([[0, 1, 2]])
+            ),
+            &limits
+        ),
+        ["/scene/surfaces/0/mesh/positions/1/1"]
+    );
+    assert_eq!(
+        errors(mesh(square.clone(), json!([[0, 1, -2]])), &limits),
+        ["/scene/surfaces/0/mesh/triangles/0/2"]
+    );
+    let few = Limits {
+        max_triangles: 1,
+        ..Limits::default()
+    };
+    assert_eq!(
+        errors(mesh(square.clone(), json!([[0, 1, 2], [0, 2, 3]])), &few),
+        ["/scene/surfaces"]
+    );
+    // a triangle: collinear corners, an emission region, two shapes at once
+    assert_eq!(
+        errors(
+            one_surface(json!({"name": "t", "emission": 1, "reflectance": 0.5,
+                "triangle": [[0, 0, 0], [1, 0, 0], [2, 0, 0]]})),
+            &limits
+        ),
+        ["/scene/surfaces/0/triangle"]
+    );
+    assert_eq!(
+        errors(
+            one_surface(json!({"name": "t", "emission": 1, "reflectance": 0.5,
+                "triangle": [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+                "emission_region": {"s": [0, 0.5], "t": [0, 0.5]}})),
+            &limits
+        ),
+        ["/scene/surfaces/0/emission_region"]
+    );
+    assert_eq!(
+        errors(
+            one_surface(json!({"name": "t", "emission": 1, "reflectance": 0.5,
+                "triangle": [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+                "corners": [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]})),
+            &limits
+        ),
+        ["/scene/surfaces/0"]
+    );
+    // the projection method takes parallelograms only
+    let mut projection = mesh(square, json!([[0, 1, 2]]));
+    projection["solver"] = json!({"method": "projection"});
+    assert_eq!(errors(projection, &limits), ["/scene/surfaces/0/mesh"]);
+}
+
+/// The example of the contract: a tetrahedron of triangles standing on a floor, with B at
+/// the vertices in the order of the positions, and one cell per triangle.
+#[test]
+fn the_tetrahedron_example_solves_with_its_vertices() {
+    let doc = scene_file("tetrahedron-mesh");
+    let j = job(doc.clone());
+    let o = wavrad::job::run(&j, &wavrad::progress::Silent).unwrap();
+    for (s, raw) in o
+        .result
+        .surfaces
+        .iter()
+        .zip(doc["scene"]["surfaces"].as_array().unwrap())
+    {
+        if let Some(mesh) = raw.get("mesh") {
+            let n = mesh["positions"].as_array().unwrap().len();
+            let t = mesh["triangles"].as_array().unwrap().len();
+            assert_eq!(s.vertices.as_ref().map(Vec::len), Some(n), "{}", s.name);
+            assert_eq!(s.cells.len(), t, "{}", s.name);
+        } else if raw.get("triangle").is_some() {
+            assert_eq!(s.vertices.as_ref().map(Vec::len), Some(3), "{}", s.name);
+            assert_eq!(s.cells.len(), 1);
+        }
+        assert!(s.mean.iter().all(|v| v.is_finite() && *v >= 0.0));
+    }
+}
+
+/// Howell's C-11 between two parallel unit squares one unit apart (F = 0.199825), each square
+/// a parallelogram or a mesh of two triangles: the receiver's mean is ρ E F whichever way
+/// the squares are made.
+#[test]
+fn parallel_squares_of_triangles_give_howells_form_factor() {
+    let f = 0.199_825_4;
+    let square = |z: f64, up: bool| -> Vec<[f64; 3]> {
+        let c = vec![[0.0, 0.0, z], [1.0, 0.0, z], [1.0, 1.0, z], [0.0, 1.0, z]];
+        if up {
+            c
+        } else {
+            c.into_iter().rev().collect()
+        }
+    };
+    let surface = |name: &str, c: Vec<[f64; 3]>, tri: bool, e: f64, rho: f64| {
+        if tri {
+            json!({"name": name, "reflectance": rho, "emission": e,
+                "mesh": {"positions": c, "triangles": [[0, 1, 2], [0, 2, 3]]}})
+        } else {
+            json!({"name": name, "reflectance": rho, "emission": e, "corners": c})
+        }
+    };
+    for (tri_e, tri_r) in [(false, false), (true, false), (false, true), (true, true)] {
+        let doc = json!({
+            "scene": {"kind": "3d", "surfaces": [
+                surface("lamp", square(1.0, false), tri_e, 1.0, 0.0),
+                surface("floor", square(0.0, true), tri_r, 0.0, 0.5),
+            ]},
+            "solver": {"method": "hierarchical", "order": 1, "epsilon": 1e-4},
+            "output": {"image": {"width": 16, "height": 16}}
+        });
+        let o = run(doc);
+        let got = o.result.surfaces[1].mean[0];
+        assert!(
+            (got - 0.5 * f).abs() < 1e-3 * 0.5 * f,
+            "lamp of triangles {tri_e}, floor of triangles {tri_r}: {got} against {}",
+            0.5 * f
+        );
+    }
+}
