@@ -25,6 +25,7 @@ pub fn router(state: AppState) -> Router {
         .route("/api/v1/jobs/{id}", get(job_status).delete(delete_job))
         .route("/api/v1/jobs/{id}/events", get(job_events))
         .route("/api/v1/jobs/{id}/result", get(job_result))
+        .route("/api/v1/jobs/{id}/scene.glb", get(job_model))
         .route("/api/v1/jobs/{id}/{artifact}", get(job_artifact))
         .route("/api/v1/jobs/{id}/surfaces/{file}", get(job_surface))
         .route("/api/v1/render", axum::routing::post(render_now))
@@ -370,6 +371,31 @@ pub async fn job_artifact(
     Ok(png(bytes, &headers))
 }
 
+/// `scene.glb` of a 3d job: the solved scene as binary glTF with the lighting baked in.
+#[utoipa::path(get, path = "/api/v1/jobs/{id}/scene.glb", tag = "results",
+    params(("id" = String, Path)),
+    responses((status = 200, content_type = "model/gltf-binary", body = super::openapi::Glb,
+            description = "the solved surfaces as a crack-free triangle mesh, vertex colours (COLOR_0) the displayed radiance, unlit (KHR_materials_unlit), the exposure in the scene's extras"),
+        (status = 304, description = "If-None-Match matched the ETag"),
+        (status = 404, description = "no such job, or not a 3d job", body = Problem, content_type = "application/problem+json"),
+        (status = 409, body = Problem, content_type = "application/problem+json")))]
+pub async fn job_model(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> Result<Response, Problem> {
+    let status = entry(&state, &id).await?.status();
+    if status.kind != "3d" {
+        return Err(Problem::not_found(&format!(
+            "scene.glb of job {id}: only 3d jobs have one (this one is {})",
+            status.kind
+        )));
+    }
+    finished(&state, &id).await?;
+    let bytes = stored(&state, &id, "scene.glb").await?;
+    Ok(immutable(bytes, "model/gltf-binary", &headers))
+}
+
 /// The image of one surface.
 #[utoipa::path(get, path = "/api/v1/jobs/{id}/surfaces/{file}", tag = "results",
     params(("id" = String, Path), ("file" = String, Path, description = "<surface name>.png")),
@@ -399,6 +425,11 @@ pub async fn job_surface(
 /// A PNG with a strong ETag (its hash) and immutable caching: the same document always gives
 /// the same bytes.
 fn png(bytes: Vec<u8>, headers: &HeaderMap) -> Response {
+    immutable(bytes, "image/png", headers)
+}
+
+/// A file of a finished job with a strong ETag (its hash) and immutable caching.
+fn immutable(bytes: Vec<u8>, mime: &'static str, headers: &HeaderMap) -> Response {
     let digest = Sha256::digest(&bytes);
     let etag = format!(
         "\"{}\"",
@@ -426,7 +457,7 @@ fn png(bytes: Vec<u8>, headers: &HeaderMap) -> Response {
     }
     (
         [
-            (header::CONTENT_TYPE, "image/png".to_string()),
+            (header::CONTENT_TYPE, mime.to_string()),
             (header::ETAG, etag),
             (cache.0, cache.1.to_string()),
         ],
