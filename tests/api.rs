@@ -820,3 +820,57 @@ async fn surface_names_are_percent_encoded_in_links() {
     assert_eq!(st, StatusCode::OK);
     assert_eq!(h[header::CONTENT_TYPE], "image/png");
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn scene_glb_of_3d_jobs_409_until_done_404_for_other_kinds() {
+    let (_dir, state, router) = setup(|_| {});
+    // a 3d job held running: 409
+    let mut slow = scene("plates-3d");
+    slow["scene"]["name"] = json!("slow plates");
+    let (_, _, s) = submit(&router, &slow).await;
+    let id = s["id"].as_str().unwrap().to_string();
+    assert_eq!(s["links"]["model"], format!("/api/v1/jobs/{id}/scene.glb"));
+    wait_until(&state, &id, |s| s == JobState::Running).await;
+    let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}/scene.glb"))).await;
+    problem(st, &h, &b, StatusCode::CONFLICT);
+    let (st, _, _) = call(&router, delete(&format!("/api/v1/jobs/{id}"))).await;
+    assert_eq!(st, StatusCode::NO_CONTENT);
+
+    // a finished 3d job: binary glTF, cached like the images
+    let (_, _, s) = submit(&router, &scene("plates-3d")).await;
+    let id = s["id"].as_str().unwrap().to_string();
+    let done = wait_until(&state, &id, |s| s.is_final()).await;
+    assert_eq!(done.state, JobState::Succeeded);
+    let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}/scene.glb"))).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(h[header::CONTENT_TYPE], "model/gltf-binary");
+    assert_eq!(&b[..4], b"glTF");
+    assert_eq!(
+        u32::from_le_bytes(b[8..12].try_into().unwrap()) as usize,
+        b.len()
+    );
+    let etag = h[header::ETAG].clone();
+    let (st, _, _) = call(
+        &router,
+        Request::get(format!("/api/v1/jobs/{id}/scene.glb"))
+            .header(header::IF_NONE_MATCH, etag)
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, StatusCode::NOT_MODIFIED);
+
+    // flatland: none, before and after it has finished
+    let (_, _, s) = submit(&router, &scene("flatland-parallel")).await;
+    let id = s["id"].as_str().unwrap().to_string();
+    assert!(s["links"].get("model").is_none());
+    wait_until(&state, &id, |s| s.is_final()).await;
+    let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}/scene.glb"))).await;
+    problem(st, &h, &b, StatusCode::NOT_FOUND);
+    let (st, h, b) = call(
+        &router,
+        get("/api/v1/jobs/0123456789abcdef0123456789abcdef/scene.glb"),
+    )
+    .await;
+    problem(st, &h, &b, StatusCode::NOT_FOUND);
+}
