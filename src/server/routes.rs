@@ -32,6 +32,7 @@ pub fn router(state: AppState) -> Router {
         .route("/api/v1/openapi.json", get(openapi))
         .route("/", get(index))
         .route("/static/{file}", get(static_file))
+        .route("/static/vendor/three/{*path}", get(vendored))
         // browsers ask for it whatever the page says
         .route(
             "/favicon.ico",
@@ -661,6 +662,10 @@ async fn static_file(Path(file): Path<String>) -> Result<Response, Problem> {
             include_str!("../../static/style.css"),
             "text/css; charset=utf-8",
         ),
+        "view3d.js" => (
+            include_str!("../../static/view3d.js"),
+            "text/javascript; charset=utf-8",
+        ),
         "favicon.svg" => (include_str!("../../static/favicon.svg"), "image/svg+xml"),
         _ => return Err(Problem::not_found(&format!("static file {file}"))),
     };
@@ -670,6 +675,58 @@ async fn static_file(Path(file): Path<String>) -> Result<Response, Problem> {
             (header::CACHE_CONTROL, "no-cache"),
         ],
         body,
+    )
+        .into_response())
+}
+
+/// three.js as vendored in `static/vendor/three/` (its README says which files and version),
+/// embedded: the page's 3D view needs nothing from elsewhere.
+const VENDORED: [(&str, &str); 7] = [
+    (
+        "build/three.module.min.js",
+        include_str!("../../static/vendor/three/build/three.module.min.js"),
+    ),
+    (
+        "build/three.core.min.js",
+        include_str!("../../static/vendor/three/build/three.core.min.js"),
+    ),
+    (
+        "examples/jsm/loaders/GLTFLoader.js",
+        include_str!("../../static/vendor/three/examples/jsm/loaders/GLTFLoader.js"),
+    ),
+    (
+        "examples/jsm/utils/BufferGeometryUtils.js",
+        include_str!("../../static/vendor/three/examples/jsm/utils/BufferGeometryUtils.js"),
+    ),
+    (
+        "examples/jsm/utils/SkeletonUtils.js",
+        include_str!("../../static/vendor/three/examples/jsm/utils/SkeletonUtils.js"),
+    ),
+    (
+        "examples/jsm/controls/OrbitControls.js",
+        include_str!("../../static/vendor/three/examples/jsm/controls/OrbitControls.js"),
+    ),
+    ("LICENSE", include_str!("../../static/vendor/three/LICENSE")),
+];
+
+/// A vendored three.js file; they change only with the binary, so they are cached for a day.
+async fn vendored(Path(path): Path<String>) -> Result<Response, Problem> {
+    let Some((name, body)) = VENDORED.iter().find(|(n, _)| *n == path) else {
+        return Err(Problem::not_found(&format!(
+            "static file vendor/three/{path}"
+        )));
+    };
+    let mime = if name.ends_with(".js") {
+        "text/javascript; charset=utf-8"
+    } else {
+        "text/plain; charset=utf-8"
+    };
+    Ok((
+        [
+            (header::CONTENT_TYPE, mime),
+            (header::CACHE_CONTROL, "public, max-age=86400"),
+        ],
+        *body,
     )
         .into_response())
 }
