@@ -560,7 +560,8 @@ async fn the_page_shows_the_solved_cornell_box_in_3d_and_turns_it() {
         std::fs::write(PathBuf::from(dir).join("view3d.png"), png).unwrap();
     }
 
-    // Orbit: drag across the canvas with the mouse; the picture changes
+    // Orbit: drag 60 pixels across the canvas with the mouse (about 60° around the box); the
+    // picture changes
     use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
     let canvas = client.find(Locator::Id("view3d-canvas")).await.unwrap();
     let drag = MouseActions::new("mouse".into())
@@ -575,8 +576,8 @@ async fn the_page_shows_the_solved_cornell_box_in_3d_and_turns_it() {
         })
         .then(PointerAction::MoveBy {
             duration: Some(Duration::from_millis(300)),
-            x: 150,
-            y: 40,
+            x: 60,
+            y: 10,
         })
         .then(PointerAction::Up {
             button: MOUSE_BUTTON_LEFT,
