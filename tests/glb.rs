@@ -243,8 +243,8 @@ fn check(name: &str, max_bytes: usize) {
     let cam = nodes.last().unwrap();
     assert!(cam.camera().is_some());
     let (eye, _, _) = cam.transform().decomposed();
-    for a in 0..3 {
-        assert!((eye[a] as f64 - shot.camera.eye[a]).abs() < 1e-3);
+    for (a, b) in eye.iter().zip(shot.camera.eye) {
+        assert!((*a as f64 - b).abs() < 1e-3);
     }
     let mut triangles_total = 0;
     for ((node, quad), field) in nodes.iter().zip(quads).zip(&outcome.fields) {

@@ -241,10 +241,11 @@ pub fn write(
             roughness_factor: json::material::StrengthFactor(1.0),
             ..Default::default()
         },
-        extensions: Some(json::extensions::material::Material {
-            unlit: Some(json::extensions::material::Unlit {}),
-            ..Default::default()
-        }),
+        // from its JSON, whatever other material extensions the crate's features add
+        extensions: Some(
+            serde_json::from_value(serde_json::json!({ "KHR_materials_unlit": {} }))
+                .expect("the unlit extension"),
+        ),
         ..Default::default()
     });
     let mut bin: Vec<u8> = Vec::new();
