@@ -2,7 +2,7 @@
 //! load `/`, submit `flatland-parallel`, wait for the image, compare the shown numbers with the
 //! result JSON (integers exactly) and the job id with the file posted as written; show a
 //! validation error next to its input; show the geometry warnings of crossing segments; fit a
-//! phone-width screen; solve the Cornell box and see it in the 3D view (WebGL through
+//! phone-width screen; show image.png for a 3d scene without WebGL; solve the Cornell box and see it in the 3D view (WebGL through
 //! SwiftShader): the green wall on the left, the red on the right, and a drag turns it.
 //! Without chromedriver the test fails when `CI` is set and is skipped otherwise.
 
@@ -154,7 +154,7 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         server,
         _driver,
         _dir,
-    }) = open(&["--disable-gpu"]).await
+    }) = open(&["--disable-gpu", "--disable-3d-apis"]).await
     else {
         return;
     };
@@ -411,6 +411,46 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         .await
         .unwrap();
     assert_eq!(hidden.as_bool(), Some(false));
+
+    // A 3d scene without WebGL (--disable-3d-apis): the 3D view shows image.png instead.
+    let plates = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/plates-3d.json"
+    ))
+    .unwrap();
+    client
+        .execute(
+            "document.getElementById('doc').value = arguments[0]",
+            vec![Value::String(plates)],
+        )
+        .await
+        .unwrap();
+    client
+        .find(Locator::Id("submit"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    until("the image instead of the 3D view", Duration::from_secs(60), || async {
+        let v = client
+            .execute(
+                "const i = document.getElementById('view3d-fallback'); return !!i && i.complete && i.naturalWidth > 0 && i.src.endsWith('image.png') && document.getElementById('view3d').dataset.state === 'image'",
+                vec![],
+            )
+            .await
+            .unwrap();
+        v.as_bool() == Some(true)
+    })
+    .await;
+    let note = client
+        .find(Locator::Id("view3d-note"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(note.contains("no WebGL"), "{note}");
 
     // Phone width: nothing wider than the screen.
     client.set_window_size(390, 844).await.unwrap();
