@@ -1,9 +1,10 @@
 //! The web page in real headless Chromium, driven over WebDriver (Debian's chromedriver):
 //! load `/`, submit `flatland-parallel`, wait for the image, compare the shown numbers with the
 //! result JSON (integers exactly) and the job id with the file posted as written; show a
-//! validation error next to its input; show the geometry warnings of crossing segments; fit a
-//! phone-width screen; show image.png for a 3d scene without WebGL; solve the Cornell box and see it in the 3D view (WebGL through
-//! SwiftShader): the green wall on the left, the red on the right, and a drag turns it.
+//! validation error next to its input; show the geometry warnings of crossing segments; show
+//! image.png in the 3D view's place for a 3d scene without WebGL; fit a phone-width screen.
+//! Then, with WebGL through SwiftShader, solve the Cornell box and see it in the 3D view: the
+//! green wall on the left, the red on the right, and a drag turns it.
 //! Without chromedriver the test fails when `CI` is set and is skipped otherwise.
 
 mod common;
