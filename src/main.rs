@@ -17,11 +17,12 @@ struct Cli {
 enum Command {
     /// Serve the HTTP API and the web page.
     Serve(Box<Config>),
-    /// Solve one job document and write DIR/result.json and the images.
+    /// Solve one job document and write DIR/result.json, the images and (3d) scene.glb.
     Render {
         /// The job document (JSON).
         doc: PathBuf,
-        /// Where to write result.json, image.png, sparsity.png, coefficients.png, surfaces/.
+        /// Where to write result.json, image.png, sparsity.png, coefficients.png, surfaces/ and
+        /// (3d) scene.glb.
         #[arg(long)]
         out: PathBuf,
     },

@@ -1,5 +1,6 @@
-// The wavrad web page: pick or paste a job document, submit it, follow its progress over
-// Server-Sent Events and show the images, the per-surface means and the metrics.
+// The wavrad web page: pick or paste a job document, or open a model file, submit it, follow
+// its progress over Server-Sent Events and show the images, the per-surface means, the metrics
+// and, for 3d scenes, the solved scene in 3D (view3d.js, three.js; image.png without WebGL).
 "use strict";
 
 const $ = (id) => document.getElementById(id);
@@ -33,7 +34,11 @@ const DEFAULTS = { method: "projection", basis: "wavelet", order: 1, resolution:
 async function pickScene(name) {
   if (!name) return;
   // the document exactly as the file has it
-  const text = await (await fetch(`/scenes/${name}.json`)).text();
+  useDocument(await (await fetch(`/scenes/${name}.json`)).text());
+}
+
+// A document into the text area, and its solver into the controls.
+function useDocument(text) {
   $("doc").value = text;
   const doc = JSON.parse(text);
   const s = doc.solver || {};
@@ -41,6 +46,36 @@ async function pickScene(name) {
   const keep = s.keep;
   if (!keep || keep === "all") { $("keep-kind").value = "all"; $("keep-value").value = ""; }
   else { const k = Object.keys(keep)[0]; $("keep-kind").value = k; $("keep-value").value = keep[k]; }
+}
+
+// The content types of model files sent alone (POST /api/v1/import).
+const MODEL_TYPES = { obj: "model/obj", gltf: "model/gltf+json", glb: "model/gltf-binary" };
+const extension = (f) => f.name.toLowerCase().split(".").pop();
+
+// "Open a model": the chosen file alone with its content type, or with the files it refers to
+// (an OBJ's MTL, a glTF's .bin) as multipart/form-data; the answer, a job document, goes into
+// the text area.
+async function openModel(files) {
+  clearErrors();
+  if (!files.length) return;
+  const model = files.find((f) => extension(f) in MODEL_TYPES);
+  if (!model) { showErrors([{ path: "", message: "choose an .obj, .gltf or .glb file" }]); return; }
+  let init;
+  if (files.length === 1) {
+    init = { method: "POST", headers: { "Content-Type": MODEL_TYPES[extension(model)] }, body: model };
+  } else {
+    const form = new FormData();
+    for (const f of files) form.append(f === model ? "model" : "file", f, f.name);
+    init = { method: "POST", body: form };
+  }
+  const res = await fetch("/api/v1/import", init);
+  const body = await res.json().catch(() => ({ title: `HTTP ${res.status}`, detail: "" }));
+  if (!res.ok) {
+    showErrors(body.errors && body.errors.length ? body.errors : [{ path: "", message: `${body.title}: ${body.detail}` }]);
+    return;
+  }
+  $("scene-select").value = "";
+  useDocument(JSON.stringify(body, null, 2));
 }
 
 function clearErrors() {
@@ -129,6 +164,7 @@ function follow(status) {
   for (const id of ["image", "sparsity", "coefficients"]) $(id).removeAttribute("src");
   $("surfaces-body").innerHTML = ""; $("metrics").innerHTML = ""; $("result-link").hidden = true;
   $("warnings").innerHTML = ""; $("warnings-panel").hidden = true;
+  hideModel();
   showStatus(status);
   if (status.state === "succeeded") { showResult(status); return; }
   events = new EventSource(status.links.events);
@@ -209,8 +245,45 @@ async function showResult(status) {
   $("sparsity").src = status.links.sparsity;
   $("coefficients").src = status.links.coefficients;
   $("image").src = status.links.image;
+  showModel(status);
+}
+
+let viewer = null;
+
+function hideModel() {
+  if (viewer) viewer.clear();
+  $("view3d").innerHTML = "";
+  $("view3d-panel").hidden = true;
+  $("view3d-note").textContent = "Drag to turn, scroll to zoom, right-drag to move.";
+  delete $("view3d").dataset.state;
+}
+
+// The solved 3d scene in 3D; image.png where the browser has no WebGL (or the view fails).
+async function showModel(status) {
+  hideModel();
+  if (!status.links.model) return;
+  $("view3d-panel").hidden = false;
+  $("model-link").href = status.links.model;
+  const box = $("view3d");
+  const fallback = (why) => {
+    const img = document.createElement("img");
+    img.id = "view3d-fallback"; img.alt = `the scene (${why})`; img.src = status.links.image;
+    box.innerHTML = ""; box.appendChild(img);
+    box.dataset.state = "image";
+    $("view3d-note").textContent = `No 3D view here (${why}): the image instead.`;
+  };
+  try {
+    viewer = await import("/static/view3d.js");
+    if (!viewer.hasWebGL()) { fallback("no WebGL"); return; }
+    await viewer.show(box, status.links.model);
+    box.dataset.state = "3d";
+  } catch (e) {
+    console.error(e);
+    fallback(String(e.message || e));
+  }
 }
 
 $("scene-select").addEventListener("change", (e) => pickScene(e.target.value));
 $("submit").addEventListener("click", submit);
+$("model-file").addEventListener("change", (e) => openModel([...e.target.files]));
 loadScenes();

@@ -820,3 +820,152 @@ async fn surface_names_are_percent_encoded_in_links() {
     assert_eq!(st, StatusCode::OK);
     assert_eq!(h[header::CONTENT_TYPE], "image/png");
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn scene_glb_of_3d_jobs_409_until_done_404_for_other_kinds() {
+    let (_dir, state, router) = setup(|_| {});
+    // a 3d job held running: 409
+    let mut slow = scene("plates-3d");
+    slow["scene"]["name"] = json!("slow plates");
+    let (_, _, s) = submit(&router, &slow).await;
+    let id = s["id"].as_str().unwrap().to_string();
+    assert_eq!(s["links"]["model"], format!("/api/v1/jobs/{id}/scene.glb"));
+    wait_until(&state, &id, |s| s == JobState::Running).await;
+    let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}/scene.glb"))).await;
+    problem(st, &h, &b, StatusCode::CONFLICT);
+    let (st, _, _) = call(&router, delete(&format!("/api/v1/jobs/{id}"))).await;
+    assert_eq!(st, StatusCode::NO_CONTENT);
+
+    // a finished 3d job: binary glTF, cached like the images
+    let (_, _, s) = submit(&router, &scene("plates-3d")).await;
+    let id = s["id"].as_str().unwrap().to_string();
+    let done = wait_until(&state, &id, |s| s.is_final()).await;
+    assert_eq!(done.state, JobState::Succeeded);
+    let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}/scene.glb"))).await;
+    assert_eq!(st, StatusCode::OK);
+    assert_eq!(h[header::CONTENT_TYPE], "model/gltf-binary");
+    assert_eq!(&b[..4], b"glTF");
+    assert_eq!(
+        u32::from_le_bytes(b[8..12].try_into().unwrap()) as usize,
+        b.len()
+    );
+    let etag = h[header::ETAG].clone();
+    let (st, _, _) = call(
+        &router,
+        Request::get(format!("/api/v1/jobs/{id}/scene.glb"))
+            .header(header::IF_NONE_MATCH, etag)
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, StatusCode::NOT_MODIFIED);
+
+    // flatland: none, before and after it has finished
+    let (_, _, s) = submit(&router, &scene("flatland-parallel")).await;
+    let id = s["id"].as_str().unwrap().to_string();
+    assert!(s["links"].get("model").is_none());
+    wait_until(&state, &id, |s| s.is_final()).await;
+    let (st, h, b) = call(&router, get(&format!("/api/v1/jobs/{id}/scene.glb"))).await;
+    problem(st, &h, &b, StatusCode::NOT_FOUND);
+    let (st, h, b) = call(
+        &router,
+        get("/api/v1/jobs/0123456789abcdef0123456789abcdef/scene.glb"),
+    )
+    .await;
+    problem(st, &h, &b, StatusCode::NOT_FOUND);
+}
+
+/// The page's 3D view needs nothing from elsewhere: every module that `view3d.js` imports,
+/// through the page's import map and the relative imports of three.js, is served by the
+/// binary as JavaScript, and three.js's licence beside it.
+#[tokio::test(flavor = "multi_thread")]
+async fn the_3d_view_and_every_module_it_imports_are_served() {
+    let (_dir, _state, router) = setup(|_| {});
+    let html = String::from_utf8(call(&router, get("/")).await.2.to_vec()).unwrap();
+    for id in ["model-file", "view3d", "view3d-panel", "model-link"] {
+        assert!(html.contains(&format!("id=\"{id}\"")), "#{id} missing");
+    }
+    let map_start = html
+        .find(r#"<script type="importmap">"#)
+        .expect("an import map");
+    let map_text = &html[map_start + 25..];
+    let map: Value =
+        serde_json::from_str(&map_text[..map_text.find("</script>").unwrap()]).unwrap();
+    let three = map["imports"]["three"].as_str().unwrap().to_string();
+    let mut todo = vec!["/static/view3d.js".to_string()];
+    let mut seen = std::collections::BTreeSet::new();
+    while let Some(url) = todo.pop() {
+        if !seen.insert(url.clone()) {
+            continue;
+        }
+        let (st, h, b) = call(&router, get(&url)).await;
+        assert_eq!(st, StatusCode::OK, "{url}");
+        assert!(
+            h[header::CONTENT_TYPE]
+                .to_str()
+                .unwrap()
+                .starts_with("text/javascript"),
+            "{url}"
+        );
+        let text = String::from_utf8(b.to_vec()).unwrap();
+        // import … from "x", import "x" and export … from "x", as written or minified,
+        // left out in comments (the examples in three.js's documentation)
+        let code: String = text
+            .lines()
+            .filter(|l| {
+                let t = l.trim_start();
+                !(t.starts_with("//") || t.starts_with('*') || t.starts_with("/*"))
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        let mut rest = code.as_str();
+        while let Some(i) = rest.find("from") {
+            rest = &rest[i + 4..];
+            let t = rest.trim_start();
+            let Some(q) = t.chars().next().filter(|c| *c == '"' || *c == '\'') else {
+                continue;
+            };
+            let Some(end) = t[1..].find(q) else { continue };
+            let spec = &t[1..1 + end];
+            let dir = &url[..url.rfind('/').unwrap() + 1];
+            let target = if spec == "three" {
+                three.clone()
+            } else if let Some(r) = spec.strip_prefix("./") {
+                format!("{dir}{r}")
+            } else if spec.starts_with("../") {
+                let mut base: Vec<&str> = dir.trim_end_matches('/').split('/').collect();
+                let mut s = spec;
+                while let Some(r) = s.strip_prefix("../") {
+                    base.pop();
+                    s = r;
+                }
+                format!("{}/{s}", base.join("/"))
+            } else if spec.starts_with('/') && !spec.starts_with("//") {
+                spec.to_string()
+            } else {
+                // not from elsewhere; any other word after "from" is not a module
+                assert!(
+                    !spec.contains("//") && !spec.starts_with("http"),
+                    "{url} imports {spec}"
+                );
+                continue;
+            };
+            todo.push(target);
+        }
+    }
+    for needed in [
+        "/static/view3d.js",
+        "/static/vendor/three/build/three.module.min.js",
+        "/static/vendor/three/build/three.core.min.js",
+        "/static/vendor/three/examples/jsm/loaders/GLTFLoader.js",
+        "/static/vendor/three/examples/jsm/utils/BufferGeometryUtils.js",
+        "/static/vendor/three/examples/jsm/controls/OrbitControls.js",
+    ] {
+        assert!(seen.contains(needed), "{needed} not reached: {seen:?}");
+    }
+    let (st, _, b) = call(&router, get("/static/vendor/three/LICENSE")).await;
+    assert_eq!(st, StatusCode::OK);
+    assert!(String::from_utf8_lossy(&b).contains("MIT License"));
+    let (st, _, _) = call(&router, get("/static/vendor/three/build/nope.js")).await;
+    assert_eq!(st, StatusCode::NOT_FOUND);
+}

@@ -1,8 +1,10 @@
 //! The web page in real headless Chromium, driven over WebDriver (Debian's chromedriver):
 //! load `/`, submit `flatland-parallel`, wait for the image, compare the shown numbers with the
 //! result JSON (integers exactly) and the job id with the file posted as written; show a
-//! validation error next to its input; show the geometry warnings of crossing segments; fit a
-//! phone-width screen.
+//! validation error next to its input; show the geometry warnings of crossing segments; show
+//! image.png in the 3D view's place for a 3d scene without WebGL; fit a phone-width screen.
+//! Then, with WebGL through SwiftShader, solve the Cornell box and see it in the 3D view: the
+//! green wall on the left, the red on the right, and a drag turns it.
 //! Without chromedriver the test fails when `CI` is set and is skipped otherwise.
 
 mod common;
@@ -51,8 +53,18 @@ where
     }
 }
 
-#[tokio::test(flavor = "multi_thread")]
-async fn the_page_solves_flatland_parallel_in_chromium() {
+/// A server on a free port and Chromium driven over WebDriver, started with `args` besides
+/// the usual ones; `None` when chromedriver or chromium is missing (a failure under `CI`).
+struct Session {
+    client: fantoccini::Client,
+    base: String,
+    stop: tokio::sync::oneshot::Sender<()>,
+    server: tokio::task::JoinHandle<std::io::Result<()>>,
+    _driver: Driver,
+    _dir: tempfile::TempDir,
+}
+
+async fn open(args: &[&str]) -> Option<Session> {
     let (Some(chromedriver), Some(chromium)) = (
         find(&["chromedriver"]),
         find(&["chromium", "chromium-browser", "google-chrome"]),
@@ -63,7 +75,7 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
             );
         }
         eprintln!("skipped: chromedriver or chromium not installed");
-        return;
+        return None;
     };
 
     let dir = tempfile::tempdir().unwrap();
@@ -85,7 +97,7 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         .local_addr()
         .unwrap()
         .port();
-    let _driver = Driver(
+    let driver = Driver(
         Command::new(&chromedriver)
             .arg(format!("--port={port}"))
             .stdout(Stdio::null())
@@ -93,12 +105,17 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
             .spawn()
             .unwrap(),
     );
+    let mut all = vec![
+        "--headless",
+        "--no-sandbox",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-dev-shm-usage",
+        "--window-size=1200,900",
+    ];
+    all.extend_from_slice(args);
     let caps: serde_json::Map<String, Value> = serde_json::from_value(json!({
-        "goog:chromeOptions": {
-            "binary": chromium,
-            "args": ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-                     "--disable-background-networking", "--disable-dev-shm-usage", "--window-size=1200,900"]
-        }
+        "goog:chromeOptions": { "binary": chromium, "args": all }
     }))
     .unwrap();
     let webdriver = format!("http://127.0.0.1:{port}");
@@ -118,6 +135,29 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
                 tokio::time::sleep(Duration::from_millis(100)).await;
             }
         }
+    };
+    Some(Session {
+        client,
+        base,
+        stop,
+        server,
+        _driver: driver,
+        _dir: dir,
+    })
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn the_page_solves_flatland_parallel_in_chromium() {
+    let Some(Session {
+        client,
+        base,
+        stop,
+        server,
+        _driver,
+        _dir,
+    }) = open(&["--disable-gpu", "--disable-3d-apis"]).await
+    else {
+        return;
     };
 
     client.goto(&format!("{base}/")).await.unwrap();
@@ -373,6 +413,46 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
         .unwrap();
     assert_eq!(hidden.as_bool(), Some(false));
 
+    // A 3d scene without WebGL (--disable-3d-apis): the 3D view shows image.png instead.
+    let plates = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/plates-3d.json"
+    ))
+    .unwrap();
+    client
+        .execute(
+            "document.getElementById('doc').value = arguments[0]",
+            vec![Value::String(plates)],
+        )
+        .await
+        .unwrap();
+    client
+        .find(Locator::Id("submit"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    until("the image instead of the 3D view", Duration::from_secs(60), || async {
+        let v = client
+            .execute(
+                "const i = document.getElementById('view3d-fallback'); return !!i && i.complete && i.naturalWidth > 0 && i.src.endsWith('image.png') && document.getElementById('view3d').dataset.state === 'image'",
+                vec![],
+            )
+            .await
+            .unwrap();
+        v.as_bool() == Some(true)
+    })
+    .await;
+    let note = client
+        .find(Locator::Id("view3d-note"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(note.contains("no WebGL"), "{note}");
+
     // Phone width: nothing wider than the screen.
     client.set_window_size(390, 844).await.unwrap();
     let fits = client
@@ -390,6 +470,171 @@ async fn the_page_solves_flatland_parallel_in_chromium() {
     if let Ok(dir) = std::env::var("WAVRAD_SCREENSHOT_DIR") {
         let png = client.screenshot().await.unwrap();
         std::fs::write(PathBuf::from(dir).join("phone.png"), png).unwrap();
+    }
+
+    client.close().await.unwrap();
+    stop.send(()).unwrap();
+    server.await.unwrap().unwrap();
+}
+
+/// The mean colour of two vertical bands of the 3D view's canvas (the left and right 4–18 % of
+/// its width, the middle 40 % of its height) and a checksum of all its pixels.
+const READ_CANVAS: &str = r#"
+const c = document.getElementById('view3d-canvas');
+const w = c.width, h = c.height;
+const copy = document.createElement('canvas'); copy.width = w; copy.height = h;
+const g = copy.getContext('2d'); g.drawImage(c, 0, 0);
+const d = g.getImageData(0, 0, w, h).data;
+const band = (a, b) => {
+  const m = [0, 0, 0]; let n = 0;
+  for (let y = Math.floor(h * 0.3); y < h * 0.7; y++)
+    for (let x = Math.floor(w * a); x < w * b; x++) {
+      const i = 4 * (y * w + x); m[0] += d[i]; m[1] += d[i + 1]; m[2] += d[i + 2]; n++;
+    }
+  return m.map((v) => v / n);
+};
+let sum = 0, lit = 0;
+for (let i = 0; i < d.length; i += 4) { sum = (sum * 31 + d[i] + 7 * d[i + 1] + 13 * d[i + 2]) % 1000000007; if (d[i] + d[i + 1] + d[i + 2] > 30) lit++; }
+return { left: band(0.04, 0.18), right: band(0.82, 0.96), sum, lit: lit / (w * h), width: w, height: h };
+"#;
+
+#[tokio::test(flavor = "multi_thread")]
+async fn the_page_shows_the_solved_cornell_box_in_3d_and_turns_it() {
+    // WebGL without a GPU: SwiftShader through ANGLE
+    let Some(Session {
+        client,
+        base,
+        stop,
+        server,
+        _driver,
+        _dir,
+    }) = open(&["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]).await
+    else {
+        return;
+    };
+    client.goto(&format!("{base}/")).await.unwrap();
+    client
+        .wait()
+        .at_most(Duration::from_secs(20))
+        .for_element(Locator::Css("#scene-select option[value='cornell-box']"))
+        .await
+        .unwrap();
+    // the Cornell box as the file has it, pasted into the text area
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/cornell-box.json"
+    ))
+    .unwrap();
+    client
+        .find(Locator::Id("scene-select"))
+        .await
+        .unwrap()
+        .select_by_value("cornell-box")
+        .await
+        .unwrap();
+    until(
+        "the scene in the text area",
+        Duration::from_secs(20),
+        || async {
+            let v = client
+                .execute("return document.getElementById('doc').value", vec![])
+                .await
+                .unwrap();
+            v.as_str() == Some(text.as_str())
+        },
+    )
+    .await;
+    client
+        .find(Locator::Id("submit"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    until("the 3D view", Duration::from_secs(180), || async {
+        let v = client
+            .execute(
+                "return document.getElementById('view3d').dataset.state || ''",
+                vec![],
+            )
+            .await
+            .unwrap();
+        !v.as_str().unwrap_or("").is_empty()
+    })
+    .await;
+    let state = client
+        .execute(
+            "return [document.getElementById('view3d').dataset.state, document.getElementById('view3d-note').textContent]",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(
+        state[0], "3d",
+        "the 3D view fell back to the image: {state}"
+    );
+    // the scene.glb that the view shows is the job's
+    let href = client
+        .execute("return document.getElementById('model-link').href", vec![])
+        .await
+        .unwrap();
+    let glb = reqwest::get(href.as_str().unwrap()).await.unwrap();
+    assert_eq!(glb.status(), 200);
+    assert_eq!(glb.headers()["content-type"], "model/gltf-binary");
+
+    let before = client.execute(READ_CANVAS, vec![]).await.unwrap();
+    eprintln!("the 3D view from image.png's camera: {before}");
+    let rgb = |v: &Value| -> [f64; 3] { std::array::from_fn(|c| v[c].as_f64().unwrap()) };
+    let (left, right) = (rgb(&before["left"]), rgb(&before["right"]));
+    // green wall on the left, red wall on the right, as in image.png
+    assert!(
+        left[1] > 1.5 * left[0] && left[1] > 1.5 * left[2] && left[1] > 60.0,
+        "the left of the view is not the green wall: {left:?}"
+    );
+    assert!(
+        right[0] > 1.5 * right[1] && right[0] > 1.5 * right[2] && right[0] > 60.0,
+        "the right of the view is not the red wall: {right:?}"
+    );
+    assert!(before["lit"].as_f64().unwrap() > 0.8, "{before}");
+    if let Ok(dir) = std::env::var("WAVRAD_SCREENSHOT_DIR") {
+        let png = client.screenshot().await.unwrap();
+        std::fs::write(PathBuf::from(dir).join("view3d.png"), png).unwrap();
+    }
+
+    // Orbit: drag 60 pixels across the canvas with the mouse (about 60° around the box); the
+    // picture changes
+    use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
+    let canvas = client.find(Locator::Id("view3d-canvas")).await.unwrap();
+    let drag = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveToElement {
+            element: canvas,
+            duration: None,
+            x: 0,
+            y: 0,
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::MoveBy {
+            duration: Some(Duration::from_millis(300)),
+            x: 60,
+            y: 10,
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    client.perform_actions(drag).await.unwrap();
+    let after = client.execute(READ_CANVAS, vec![]).await.unwrap();
+    eprintln!("after a drag: {after}");
+    assert_ne!(before["sum"], after["sum"], "the picture did not change");
+    let (left2, right2) = (rgb(&after["left"]), rgb(&after["right"]));
+    let moved = (0..3)
+        .map(|c| (left2[c] - left[c]).abs() + (right2[c] - right[c]).abs())
+        .sum::<f64>();
+    assert!(moved > 20.0, "the walls did not move: {left2:?} {right2:?}");
+    if let Ok(dir) = std::env::var("WAVRAD_SCREENSHOT_DIR") {
+        let png = client.screenshot().await.unwrap();
+        std::fs::write(PathBuf::from(dir).join("view3d-turned.png"), png).unwrap();
     }
 
     client.close().await.unwrap();

@@ -55,7 +55,7 @@ pub fn render_fields(
     height: u32,
     opts: Options,
 ) -> RgbImage {
-    render_from(job, fields, width, height, opts, None)
+    shoot(job, fields, width, height, opts).image
 }
 
 /// The scene seen by a camera that frames the patches `patches` (a mesh surface's picture).
@@ -71,19 +71,45 @@ pub fn view_of(
     };
     let geo: Vec<Parallelogram> = quads[patches].iter().map(Parallelogram::of).collect();
     let camera = frame(&geo, &Bvh::new(&geo));
-    render_from(job, fields, width, height, Options::default(), Some(camera))
+    shoot_from(job, fields, width, height, Options::default(), Some(camera)).image
 }
 
-fn render_from(
+/// A camera image with what it took to make it: the exposure and the camera, which
+/// `scene.glb` shares with `image.png`.
+#[derive(Debug, Clone)]
+pub struct Shot {
+    pub image: RgbImage,
+    /// The radiance (B/π) shown as white.
+    pub white: f64,
+    /// The camera, the document's or the one framed automatically.
+    pub camera: Camera,
+}
+
+/// [`render`] with its exposure and camera.
+pub fn shoot(job: &Job, fields: &[Field], width: u32, height: u32, opts: Options) -> Shot {
+    shoot_from(job, fields, width, height, opts, None)
+}
+
+/// [`shoot`] from `camera` when given, else the document's or one framed automatically.
+fn shoot_from(
     job: &Job,
     fields: &[Field],
     width: u32,
     height: u32,
     opts: Options,
     camera: Option<Camera>,
-) -> RgbImage {
+) -> Shot {
     let SceneKind::ThreeD(quads) = &job.scene.kind else {
-        return RgbImage::new(width, height);
+        return Shot {
+            image: RgbImage::new(width, height),
+            white: 1.0,
+            camera: Camera {
+                eye: [0.0, 0.0, -1.0],
+                look_at: [0.0; 3],
+                up: [0.0, 1.0, 0.0],
+                fov_deg: 40.0,
+            },
+        };
     };
     let geo: Vec<Parallelogram> = quads.iter().map(Parallelogram::of).collect();
     let bvh = Bvh::new(&geo);
@@ -139,7 +165,11 @@ fn render_from(
     for (i, (v, _)) in radiance.iter().enumerate() {
         img.put_pixel((i % w) as u32, (i / w) as u32, encode(*v, white));
     }
-    img
+    Shot {
+        image: img,
+        white,
+        camera,
+    }
 }
 
 /// B over one surface as an image (s to the right, t up), radiance B/π scaled so that
@@ -399,7 +429,7 @@ fn auto_exposure(radiance: &[([f64; 3], bool)]) -> f64 {
 }
 
 /// Linear radiance, scaled so that `white` maps to 1, clamped and sRGB-encoded.
-fn encode(v: [f64; 3], white: f64) -> Rgb<u8> {
+pub fn encode(v: [f64; 3], white: f64) -> Rgb<u8> {
     let f = |x: f64| {
         let x = (x / white).clamp(0.0, 1.0);
         let s = if x <= 0.0031308 {

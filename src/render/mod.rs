@@ -5,9 +5,11 @@
 //! deterministic: the same document gives byte-identical PNGs (no timings, no randomness, a
 //! font embedded in the binary).
 //!
-//! 3D scenes are drawn from the camera by [`camera`].
+//! 3D scenes are drawn from the camera by [`camera`], and written as `scene.glb`, lit, by
+//! [`glb`].
 
 pub mod camera;
+pub mod glb;
 pub mod plot;
 
 use crate::job::Outcome;
@@ -24,11 +26,13 @@ pub struct Images {
     pub coefficients: Vec<u8>,
     /// `(surface name, png)` in document order.
     pub surfaces: Vec<(String, Vec<u8>)>,
+    /// 3d: `scene.glb`, the solved scene as binary glTF.
+    pub glb: Option<Vec<u8>>,
 }
 
 impl Images {
     /// `(artifact path, bytes)`: `image.png`, `sparsity.png`, `coefficients.png`,
-    /// `surfaces/<name>.png`.
+    /// `surfaces/<name>.png` and, for 3d, `scene.glb`.
     pub fn files(&self) -> Vec<(String, &[u8])> {
         let mut out = vec![
             ("image.png".to_string(), self.image.as_slice()),
@@ -37,6 +41,9 @@ impl Images {
         ];
         for (name, png) in &self.surfaces {
             out.push((format!("surfaces/{name}.png"), png.as_slice()));
+        }
+        if let Some(glb) = &self.glb {
+            out.push(("scene.glb".to_string(), glb.as_slice()));
         }
         out
     }
@@ -47,19 +54,40 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
     let spec = job.output.image;
     let names = job.surface_names();
     // Independent images, drawn in parallel; each is deterministic on its own.
-    let main = || {
-        let img = match &job.scene.kind {
-            SceneKind::ThreeD(_) => {
-                let mut img = camera::render(job, outcome, spec.width, spec.height);
+    // the camera image, and for 3d the lit model with the same exposure and camera
+    let main = || match &job.scene.kind {
+        SceneKind::ThreeD(_) => {
+            let opts = camera::Options {
+                raw: spec.raw,
+                mesh: spec.mesh,
+            };
+            let shot = camera::shoot(job, &outcome.fields, spec.width, spec.height, opts);
+            let view = glb::View {
+                camera: shot.camera,
+                aspect: spec.width as f64 / spec.height as f64,
+            };
+            let (mut img, white) = (shot.image, shot.white);
+            let (model, ()) = rayon::join(
+                || glb::scene(job, &outcome.fields, white, Some(view)),
                 // spec: the scene's name is shown in images (the charts have it as a title)
-                if let Some(name) = job.scene.name.as_deref().filter(|_| spec.width >= 160) {
-                    plot::caption(&mut img, name);
-                }
-                img
-            }
-            _ => plot::radiosity(job, &names, &outcome.fields, spec.width, spec.height),
-        };
-        encode_png(&img)
+                || {
+                    if let Some(name) = job.scene.name.as_deref().filter(|_| spec.width >= 160) {
+                        plot::caption(&mut img, name);
+                    }
+                },
+            );
+            (encode_png(&img), Some(model))
+        }
+        _ => (
+            encode_png(&plot::radiosity(
+                job,
+                &names,
+                &outcome.fields,
+                spec.width,
+                spec.height,
+            )),
+            None,
+        ),
     };
     let sparsity = || {
         encode_png(&match &outcome.picture {
@@ -117,7 +145,7 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
             })
             .collect()
     };
-    let ((image, sparsity), (coefficients, surfaces)) = rayon::join(
+    let (((image, glb), sparsity), (coefficients, surfaces)) = rayon::join(
         || rayon::join(main, sparsity),
         || rayon::join(coefficients, surfaces),
     );
@@ -126,6 +154,7 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
         sparsity,
         coefficients,
         surfaces: names.into_iter().zip(surfaces).collect(),
+        glb,
     }
 }
 

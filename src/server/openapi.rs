@@ -15,6 +15,11 @@ pub type JobDocument = crate::scene::schema::Document;
 #[schema(value_type = String, format = Binary)]
 pub struct Png(pub Vec<u8>);
 
+/// Binary glTF 2.0 (GLB).
+#[derive(ToSchema)]
+#[schema(value_type = String, format = Binary)]
+pub struct Glb(pub Vec<u8>);
+
 /// The result of a job (`docs/job-document.md`, "What a finished job yields"): the type it is
 /// serialised from.
 pub type ResultDocument = crate::result::JobResult;
@@ -30,6 +35,7 @@ pub type ResultDocument = crate::result::JobResult;
         routes::job_events,
         routes::job_result,
         routes::job_artifact,
+        routes::job_model,
         routes::job_surface,
         routes::render_now,
         routes::openapi,
@@ -42,6 +48,7 @@ pub type ResultDocument = crate::result::JobResult;
         JobDocument,
         ResultDocument,
         Png,
+        Glb,
         JobStatus,
         JobState,
         ProgressInfo,

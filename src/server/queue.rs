@@ -91,10 +91,13 @@ pub struct Links {
     pub coefficients: String,
     /// Surface name → its image.
     pub surfaces: BTreeMap<String, String>,
+    /// 3d: the solved scene as binary glTF (`scene.glb`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<String>,
 }
 
 impl Links {
-    fn new(id: &str, surfaces: &[String]) -> Links {
+    fn new(id: &str, surfaces: &[String], three_d: bool) -> Links {
         let base = format!("/api/v1/jobs/{id}");
         Links {
             this: base.clone(),
@@ -112,6 +115,7 @@ impl Links {
                     )
                 })
                 .collect(),
+            model: three_d.then(|| format!("{base}/scene.glb")),
         }
     }
 }
@@ -820,7 +824,11 @@ fn new_status(id: &str, job: &Job) -> JobStatus {
         finished_ms: None,
         progress: queued(),
         error: None,
-        links: Links::new(id, &job.surface_names()),
+        links: Links::new(
+            id,
+            &job.surface_names(),
+            matches!(job.scene.kind, crate::scene::SceneKind::ThreeD(_)),
+        ),
     }
 }
 

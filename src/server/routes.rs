@@ -25,12 +25,14 @@ pub fn router(state: AppState) -> Router {
         .route("/api/v1/jobs/{id}", get(job_status).delete(delete_job))
         .route("/api/v1/jobs/{id}/events", get(job_events))
         .route("/api/v1/jobs/{id}/result", get(job_result))
+        .route("/api/v1/jobs/{id}/scene.glb", get(job_model))
         .route("/api/v1/jobs/{id}/{artifact}", get(job_artifact))
         .route("/api/v1/jobs/{id}/surfaces/{file}", get(job_surface))
         .route("/api/v1/render", axum::routing::post(render_now))
         .route("/api/v1/openapi.json", get(openapi))
         .route("/", get(index))
         .route("/static/{file}", get(static_file))
+        .route("/static/vendor/three/{*path}", get(vendored))
         // browsers ask for it whatever the page says
         .route(
             "/favicon.ico",
@@ -370,6 +372,31 @@ pub async fn job_artifact(
     Ok(png(bytes, &headers))
 }
 
+/// `scene.glb` of a 3d job: the solved scene as binary glTF with the lighting baked in.
+#[utoipa::path(get, path = "/api/v1/jobs/{id}/scene.glb", tag = "results",
+    params(("id" = String, Path)),
+    responses((status = 200, content_type = "model/gltf-binary", body = super::openapi::Glb,
+            description = "the solved surfaces as a crack-free triangle mesh, vertex colours (COLOR_0) the displayed radiance, unlit (KHR_materials_unlit), the exposure in the scene's extras"),
+        (status = 304, description = "If-None-Match matched the ETag"),
+        (status = 404, description = "no such job, or not a 3d job", body = Problem, content_type = "application/problem+json"),
+        (status = 409, body = Problem, content_type = "application/problem+json")))]
+pub async fn job_model(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+) -> Result<Response, Problem> {
+    let status = entry(&state, &id).await?.status();
+    if status.kind != "3d" {
+        return Err(Problem::not_found(&format!(
+            "scene.glb of job {id}: only 3d jobs have one (this one is {})",
+            status.kind
+        )));
+    }
+    finished(&state, &id).await?;
+    let bytes = stored(&state, &id, "scene.glb").await?;
+    Ok(immutable(bytes, "model/gltf-binary", &headers))
+}
+
 /// The image of one surface.
 #[utoipa::path(get, path = "/api/v1/jobs/{id}/surfaces/{file}", tag = "results",
     params(("id" = String, Path), ("file" = String, Path, description = "<surface name>.png")),
@@ -399,6 +426,11 @@ pub async fn job_surface(
 /// A PNG with a strong ETag (its hash) and immutable caching: the same document always gives
 /// the same bytes.
 fn png(bytes: Vec<u8>, headers: &HeaderMap) -> Response {
+    immutable(bytes, "image/png", headers)
+}
+
+/// A file of a finished job with a strong ETag (its hash) and immutable caching.
+fn immutable(bytes: Vec<u8>, mime: &'static str, headers: &HeaderMap) -> Response {
     let digest = Sha256::digest(&bytes);
     let etag = format!(
         "\"{}\"",
@@ -426,7 +458,7 @@ fn png(bytes: Vec<u8>, headers: &HeaderMap) -> Response {
     }
     (
         [
-            (header::CONTENT_TYPE, "image/png".to_string()),
+            (header::CONTENT_TYPE, mime.to_string()),
             (header::ETAG, etag),
             (cache.0, cache.1.to_string()),
         ],
@@ -630,6 +662,10 @@ async fn static_file(Path(file): Path<String>) -> Result<Response, Problem> {
             include_str!("../../static/style.css"),
             "text/css; charset=utf-8",
         ),
+        "view3d.js" => (
+            include_str!("../../static/view3d.js"),
+            "text/javascript; charset=utf-8",
+        ),
         "favicon.svg" => (include_str!("../../static/favicon.svg"), "image/svg+xml"),
         _ => return Err(Problem::not_found(&format!("static file {file}"))),
     };
@@ -639,6 +675,58 @@ async fn static_file(Path(file): Path<String>) -> Result<Response, Problem> {
             (header::CACHE_CONTROL, "no-cache"),
         ],
         body,
+    )
+        .into_response())
+}
+
+/// three.js as vendored in `static/vendor/three/` (its README says which files and version),
+/// embedded: the page's 3D view needs nothing from elsewhere.
+const VENDORED: [(&str, &str); 7] = [
+    (
+        "build/three.module.min.js",
+        include_str!("../../static/vendor/three/build/three.module.min.js"),
+    ),
+    (
+        "build/three.core.min.js",
+        include_str!("../../static/vendor/three/build/three.core.min.js"),
+    ),
+    (
+        "examples/jsm/loaders/GLTFLoader.js",
+        include_str!("../../static/vendor/three/examples/jsm/loaders/GLTFLoader.js"),
+    ),
+    (
+        "examples/jsm/utils/BufferGeometryUtils.js",
+        include_str!("../../static/vendor/three/examples/jsm/utils/BufferGeometryUtils.js"),
+    ),
+    (
+        "examples/jsm/utils/SkeletonUtils.js",
+        include_str!("../../static/vendor/three/examples/jsm/utils/SkeletonUtils.js"),
+    ),
+    (
+        "examples/jsm/controls/OrbitControls.js",
+        include_str!("../../static/vendor/three/examples/jsm/controls/OrbitControls.js"),
+    ),
+    ("LICENSE", include_str!("../../static/vendor/three/LICENSE")),
+];
+
+/// A vendored three.js file; they change only with the binary, so they are cached for a day.
+async fn vendored(Path(path): Path<String>) -> Result<Response, Problem> {
+    let Some((name, body)) = VENDORED.iter().find(|(n, _)| *n == path) else {
+        return Err(Problem::not_found(&format!(
+            "static file vendor/three/{path}"
+        )));
+    };
+    let mime = if name.ends_with(".js") {
+        "text/javascript; charset=utf-8"
+    } else {
+        "text/plain; charset=utf-8"
+    };
+    Ok((
+        [
+            (header::CONTENT_TYPE, mime),
+            (header::CACHE_CONTROL, "public, max-age=86400"),
+        ],
+        *body,
     )
         .into_response())
 }
