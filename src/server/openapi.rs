@@ -15,6 +15,24 @@ pub type JobDocument = crate::scene::schema::Document;
 #[schema(value_type = String, format = Binary)]
 pub struct Png(pub Vec<u8>);
 
+/// Binary content (a GLB model).
+#[derive(ToSchema)]
+#[schema(value_type = String, format = Binary)]
+pub struct Binary(pub Vec<u8>);
+
+/// A model uploaded as `multipart/form-data`: the model (`.obj`, `.gltf` or `.glb`, told by its
+/// file name) and the files it refers to by name (an OBJ's MTL, a glTF's `.bin` and images).
+#[derive(ToSchema)]
+#[allow(dead_code)]
+pub struct ModelUpload {
+    /// The model file.
+    #[schema(value_type = String, format = Binary)]
+    model: Vec<u8>,
+    /// The files it refers to, each under its own file name.
+    #[schema(value_type = Vec<String>)]
+    files: Vec<Vec<u8>>,
+}
+
 /// The result of a job (`docs/job-document.md`, "What a finished job yields"): the type it is
 /// serialised from.
 pub type ResultDocument = crate::result::JobResult;
@@ -32,6 +50,7 @@ pub type ResultDocument = crate::result::JobResult;
         routes::job_artifact,
         routes::job_surface,
         routes::render_now,
+        routes::import_model,
         routes::openapi,
         routes::healthz,
         routes::readyz,
@@ -42,6 +61,8 @@ pub type ResultDocument = crate::result::JobResult;
         JobDocument,
         ResultDocument,
         Png,
+        Binary,
+        ModelUpload,
         JobStatus,
         JobState,
         ProgressInfo,
