@@ -100,10 +100,10 @@ fn glb() -> Vec<u8> {
         ]
     });
     let mut chunk = doc.to_string().into_bytes();
-    while chunk.len() % 4 != 0 {
+    while !chunk.len().is_multiple_of(4) {
         chunk.push(b' ');
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let mut out = Vec::new();

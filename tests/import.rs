@@ -4,6 +4,9 @@
 //! emissions of `scenes/cornell-box.json`; the example room imports whole with its lights;
 //! every error of the contract comes with its status and where; warnings are said.
 
+// Per-channel loops index several arrays by the same subscript.
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
 use axum::body::{Body, Bytes};

@@ -62,8 +62,8 @@ fn check(file: &str) {
         let name = s["name"].as_str().unwrap();
         let a = area(&s["corners"]);
         let e = want.entry(object_of(name)).or_insert(([0.0; 3], 0.0));
-        for c in 0..3 {
-            e.0[c] += a * want_by_surface[name][c];
+        for (sum, b) in e.0.iter_mut().zip(want_by_surface[name]) {
+            *sum += a * b;
         }
         e.1 += a;
     }
