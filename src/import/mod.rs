@@ -155,12 +155,26 @@ pub struct Imported {
 
 /// Imports a model: the job document of [`Imported`], or where the model is broken. `limits`
 /// only adds a warning when the document has more surfaces than they allow.
+/// A reader that stops on a model it did not expect (a panic in a crate) is answered as a
+/// model that cannot be read, not passed on.
 pub fn import(model: Model, files: Files, limits: &Limits) -> Result<Imported, ImportError> {
     let mut warnings = Vec::new();
-    let parts = match model.format {
-        Format::Obj => obj::parts(model, files, &mut warnings)?,
-        Format::Gltf | Format::Glb => gltf::parts(model, files, &mut warnings)?,
-    };
+    let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match model.format {
+        Format::Obj => obj::parts(model, files, &mut warnings),
+        Format::Gltf | Format::Glb => gltf::parts(model, files, &mut warnings),
+    }));
+    let parts = read.unwrap_or_else(|panic| {
+        let why = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        Err(ImportError::new(
+            model.file,
+            Location::Whole,
+            format!("the model cannot be read ({why})"),
+        ))
+    })?;
     assemble(model.file, parts, warnings, limits)
 }
 

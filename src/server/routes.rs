@@ -926,17 +926,7 @@ pub async fn import_model(
             format,
             bytes: &model.bytes,
         };
-        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            crate::import::import(model, &files, &limits)
-        }))
-        .unwrap_or_else(|_| {
-            Err(crate::import::ImportError::new(
-                model.file,
-                crate::import::Location::Whole,
-                "the model cannot be read",
-            ))
-        })
-        .map(|imported| {
+        crate::import::import(model, &files, &limits).map(|imported| {
             let text = serde_json::to_vec(&imported.document).expect("a document serialises");
             (imported, text)
         })
