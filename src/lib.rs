@@ -21,6 +21,7 @@
 
 pub mod flatland;
 pub mod fredholm;
+pub mod import;
 pub mod job;
 pub mod math;
 pub mod methods;

@@ -1,5 +1,5 @@
 //! The `wavrad` command: `serve` (the HTTP service), `render DOC --out DIR` (one job without a
-//! server) and `validate DOC`.
+//! server), `validate DOC` and `import MODEL` (a model as a job document).
 
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -29,6 +29,11 @@ enum Command {
     /// Check a job document against the limits of `render` (the library's, more generous than
     /// a server's defaults): prints every error as `PATH: message`; exit 2 when invalid.
     Validate { doc: PathBuf },
+    /// Turn a model (Wavefront OBJ with its MTL, glTF 2.0 or GLB) into a job document, written
+    /// to standard output; warnings go to standard error. The files the model refers to
+    /// (`mtllib`, a glTF's buffers and images) are read beside it. Exit 2 when the model is
+    /// broken (the message says where: the line of an OBJ or MTL, the JSON path in a glTF).
+    Import { model: PathBuf },
 }
 
 fn main() -> ExitCode {
@@ -48,6 +53,7 @@ fn main() -> ExitCode {
         Command::Serve(config) => serve(*config),
         Command::Render { doc, out } => render(&doc, &out),
         Command::Validate { doc } => validate(&doc),
+        Command::Import { model } => import(&model),
     }
 }
 
@@ -145,4 +151,55 @@ fn render(doc: &Path, out: &Path) -> ExitCode {
         Ok(())
     };
     run().err().unwrap_or(ExitCode::SUCCESS)
+}
+
+fn import(path: &Path) -> ExitCode {
+    use wavrad::import::{Format, Model};
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) => {
+            eprintln!("wavrad: cannot read {}: {e}", path.display());
+            return ExitCode::from(1);
+        }
+    };
+    let file = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let format = if bytes.starts_with(b"glTF") {
+        Some(Format::Glb)
+    } else {
+        Format::from_file_name(&file)
+    };
+    let Some(format) = format else {
+        eprintln!("wavrad: {file}: not a model (.obj, .gltf or .glb)");
+        return ExitCode::from(2);
+    };
+    let folder = path.parent().unwrap_or(Path::new(""));
+    // the files the model names, beside it (a URI's %20 is tried as a space by the importer)
+    let files = |name: &str| std::fs::read(folder.join(name)).ok();
+    let model = Model {
+        file: &file,
+        format,
+        bytes: &bytes,
+    };
+    match wavrad::import::import(model, &files, &wavrad::scene::Limits::default()) {
+        Ok(imported) => {
+            for w in &imported.warnings {
+                eprintln!("wavrad: warning: {w}");
+            }
+            let text =
+                serde_json::to_string_pretty(&imported.document).expect("a document serialises");
+            println!("{text}");
+            eprintln!(
+                "wavrad: {file}: {} surfaces, {} triangles",
+                imported.surfaces, imported.triangles
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("wavrad: {e}");
+            ExitCode::from(2)
+        }
+    }
 }

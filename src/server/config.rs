@@ -14,6 +14,10 @@ pub struct Config {
     /// Largest request body accepted, in bytes (larger: 413).
     #[arg(long, env = "WAVRAD_MAX_BODY_BYTES", default_value_t = 1 << 20)]
     pub max_body_bytes: usize,
+    /// Largest model accepted by `POST /api/v1/import`, in bytes: the whole upload, every part
+    /// of a multipart one together (larger: 413).
+    #[arg(long, env = "WAVRAD_MAX_IMPORT_BYTES", default_value_t = 32 << 20)]
+    pub max_import_bytes: usize,
     /// Most surfaces in one scene.
     #[arg(long, env = "WAVRAD_MAX_SURFACES", default_value_t = 64)]
     pub max_surfaces: usize,

@@ -117,6 +117,7 @@ pub fn app(state: AppState) -> Router {
         .timeout(config.request_timeout());
     routes::router(state.clone())
         .layer(RequestBodyLimitLayer::new(config.max_body_bytes))
+        .merge(routes::import_router(state.clone()))
         .layer(limits)
         .merge(routes::probes(state))
         .layer(axum::middleware::map_response(problem::problem_everywhere))

@@ -19,6 +19,23 @@ pub struct Png(pub Vec<u8>);
 #[derive(ToSchema)]
 #[schema(value_type = String, format = Binary)]
 pub struct Glb(pub Vec<u8>);
+/// Binary content (a GLB model).
+#[derive(ToSchema)]
+#[schema(value_type = String, format = Binary)]
+pub struct Binary(pub Vec<u8>);
+
+/// A model uploaded as `multipart/form-data`: the model (`.obj`, `.gltf` or `.glb`, told by its
+/// file name) and the files it refers to by name (an OBJ's MTL, a glTF's `.bin` and images).
+#[derive(ToSchema)]
+#[allow(dead_code)]
+pub struct ModelUpload {
+    /// The model file.
+    #[schema(value_type = String, format = Binary)]
+    model: Vec<u8>,
+    /// The files it refers to, each under its own file name.
+    #[schema(value_type = Vec<String>)]
+    files: Vec<Vec<u8>>,
+}
 
 /// The result of a job (`docs/job-document.md`, "What a finished job yields"): the type it is
 /// serialised from.
@@ -38,6 +55,7 @@ pub type ResultDocument = crate::result::JobResult;
         routes::job_model,
         routes::job_surface,
         routes::render_now,
+        routes::import_model,
         routes::openapi,
         routes::healthz,
         routes::readyz,
@@ -49,6 +67,8 @@ pub type ResultDocument = crate::result::JobResult;
         ResultDocument,
         Png,
         Glb,
+        Binary,
+        ModelUpload,
         JobStatus,
         JobState,
         ProgressInfo,

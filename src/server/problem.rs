@@ -16,6 +16,12 @@ pub const PROBLEM_JSON: &str = "application/problem+json";
 pub struct PathError {
     pub path: String,
     pub message: String,
+    /// For a model that cannot be imported: the file at fault (the model, its MTL, …).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file: Option<String>,
+    /// For an OBJ or MTL file: the line at fault, from 1.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub line: Option<usize>,
 }
 
 impl From<&FieldError> for PathError {
@@ -23,6 +29,8 @@ impl From<&FieldError> for PathError {
         PathError {
             path: e.path.clone(),
             message: e.message.clone(),
+            file: None,
+            line: None,
         }
     }
 }
@@ -68,6 +76,21 @@ impl Problem {
         p.kind = "/problems/invalid-document".into();
         p.title = "Invalid job document".into();
         p.errors = errors.0.iter().map(PathError::from).collect();
+        p
+    }
+
+    /// A model that cannot be imported (422): where, as a JSON pointer into a glTF file or a
+    /// line of an OBJ or MTL file, in `errors`.
+    pub fn invalid_model(error: &crate::import::ImportError) -> Problem {
+        let mut p = Problem::new(StatusCode::UNPROCESSABLE_ENTITY, error.to_string());
+        p.kind = "/problems/invalid-model".into();
+        p.title = "Invalid model".into();
+        p.errors = vec![PathError {
+            path: error.pointer().to_string(),
+            message: error.message.clone(),
+            file: Some(error.file.clone()),
+            line: error.line(),
+        }];
         p
     }
 

@@ -44,6 +44,16 @@ pub fn router(state: AppState) -> Router {
         .with_state(state)
 }
 
+/// `POST /api/v1/import`: outside the body limit of the job routes, since a model may be
+/// larger than a document; it reads at most `max_import_bytes` itself.
+pub fn import_router(state: AppState) -> Router {
+    let router = Router::new().route(
+        "/api/v1/import",
+        axum::routing::post(import_model).layer(axum::extract::DefaultBodyLimit::disable()),
+    );
+    counted(router, &state).with_state(state)
+}
+
 /// The probes and the metrics: answered outside the request limits, so that a busy server
 /// still says it is alive.
 pub fn probes(state: AppState) -> Router {
@@ -794,5 +804,246 @@ mod negotiation {
         ] {
             assert_eq!(prefers_json(accept), json, "{accept}");
         }
+    }
+}
+
+/// A request body read whole, at most `limit` bytes (else 413, naming `setting`).
+async fn read_body(body: Body, limit: usize, setting: &str) -> Result<axum::body::Bytes, Problem> {
+    axum::body::to_bytes(body, limit).await.map_err(|e| {
+        let text = format!("{e} {:?}", std::error::Error::source(&e));
+        if text.to_ascii_lowercase().contains("length limit") {
+            Problem::new(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!("the body is larger than {setting} ({limit} bytes)"),
+            )
+        } else {
+            Problem::new(
+                StatusCode::BAD_REQUEST,
+                format!("could not read the body: {e}"),
+            )
+        }
+    })
+}
+
+/// A model file of an upload: its name and bytes.
+struct Upload {
+    name: String,
+    bytes: Vec<u8>,
+    content_type: Option<String>,
+}
+
+/// The parts of a `multipart/form-data` upload, each with its file name (or field name).
+async fn multipart_parts(
+    parts: axum::http::request::Parts,
+    bytes: axum::body::Bytes,
+) -> Result<Vec<Upload>, Problem> {
+    use axum::extract::FromRequest;
+    let bad = |e: axum::extract::multipart::MultipartError| {
+        Problem::new(
+            StatusCode::BAD_REQUEST,
+            format!(
+                "the multipart/form-data body cannot be read: {}",
+                e.body_text()
+            ),
+        )
+    };
+    let request = Request::from_parts(parts, Body::from(bytes));
+    let mut multipart = axum::extract::Multipart::from_request(request, &())
+        .await
+        .map_err(|e| Problem::new(StatusCode::BAD_REQUEST, e.body_text()))?;
+    let mut out = Vec::new();
+    while let Some(field) = multipart.next_field().await.map_err(bad)? {
+        let name = field
+            .file_name()
+            .or(field.name())
+            .unwrap_or_default()
+            .to_string();
+        let content_type = field.content_type().map(str::to_string);
+        let bytes = field.bytes().await.map_err(bad)?.to_vec();
+        out.push(Upload {
+            name,
+            bytes,
+            content_type,
+        });
+    }
+    Ok(out)
+}
+
+/// A `Warning` header value (RFC 9111 §5.5 form, code 299): the text quoted, with what a
+/// header cannot carry (quotes, backslashes, anything not visible ASCII) escaped.
+fn warning_header(text: &str) -> HeaderValue {
+    let mut quoted = String::with_capacity(text.len() + 16);
+    for c in text.chars() {
+        match c {
+            '"' | '\\' => {
+                quoted.push('\\');
+                quoted.push(c);
+            }
+            ' '..='~' => quoted.push(c),
+            c => quoted.push_str(&format!("\\u{{{:x}}}", c as u32)),
+        }
+    }
+    HeaderValue::from_str(&format!("299 wavrad \"{quoted}\"")).expect("visible ASCII")
+}
+
+/// Turn a model into a job document.
+///
+/// The body is the model itself (`model/obj`, `model/gltf+json`, `model/gltf-binary`), or a
+/// `multipart/form-data` upload of the model (the part whose file name ends in `.obj`, `.gltf`
+/// or `.glb`) with the files it refers to (an OBJ's `mtllib`, a glTF's buffers and images), each
+/// found by its file name. The answer is the document with one `mesh` surface per object and
+/// material; what the import changed (a reflectance clamped below 1, triangles of zero area
+/// dropped, a missing material or light, …) comes in `Warning` headers, one per warning, so that
+/// the document stays one that the job routes accept as it is.
+#[utoipa::path(post, path = "/api/v1/import", tag = "import",
+    request_body(description = "the model, or a multipart/form-data upload of the model with the files it refers to", content(
+        (String = "model/obj"),
+        (String = "model/gltf+json"),
+        (super::openapi::Binary = "model/gltf-binary"),
+        (super::openapi::ModelUpload = "multipart/form-data"),
+    )),
+    responses(
+        (status = 200, description = "the job document", body = super::openapi::JobDocument, headers(
+            ("Warning" = String, description = "one per warning, `299 wavrad \"text\"`: a reflectance clamped to 0.99, triangles of zero area dropped, no emission in the model, a material or file missing, …"),
+        )),
+        (status = 400, description = "a multipart body that cannot be read", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "larger than max_import_bytes", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "not a model type or multipart/form-data", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "a broken model: `errors` says the file and where (`line` of an OBJ or MTL, `path`: a JSON pointer into the glTF)", body = Problem, content_type = "application/problem+json"),
+    ))]
+pub async fn import_model(
+    State(state): State<AppState>,
+    request: Request,
+) -> Result<Response, Problem> {
+    use crate::import::{Format, Model};
+    let (parts, body) = request.into_parts();
+    let content_type = parts
+        .headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("")
+        .to_string();
+    let mime = content_type
+        .split(';')
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase();
+    let format = Format::from_media_type(&mime);
+    if format.is_none() && mime != "multipart/form-data" {
+        return Err(Problem::new(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            format!("send the model as model/obj, model/gltf+json, model/gltf-binary or multipart/form-data (got {content_type:?})"),
+        ));
+    }
+    let limit = state.config.max_import_bytes;
+    let too_large = parts
+        .headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok())
+        .is_some_and(|n| n > limit as u64);
+    if too_large {
+        return Err(Problem::new(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!("the body is larger than max_import_bytes ({limit} bytes)"),
+        ));
+    }
+    let bytes = read_body(body, limit, "max_import_bytes").await?;
+    let (model, others) = match format {
+        Some(format) => {
+            let ext = match format {
+                Format::Obj => "obj",
+                Format::Gltf => "gltf",
+                Format::Glb => "glb",
+            };
+            let model = Upload {
+                name: format!("model.{ext}"),
+                bytes: bytes.to_vec(),
+                content_type: None,
+            };
+            (model, Vec::new())
+        }
+        None => {
+            let mut uploads = multipart_parts(parts, bytes).await?;
+            let is_model = |u: &Upload| {
+                Format::from_file_name(&u.name).is_some()
+                    || u.content_type
+                        .as_deref()
+                        .is_some_and(|t| Format::from_media_type(t).is_some())
+            };
+            let Some(at) = uploads.iter().position(is_model) else {
+                let mut p = Problem::new(
+                    StatusCode::UNPROCESSABLE_ENTITY,
+                    "the upload has no model: send a part whose file name ends in .obj, .gltf or .glb",
+                )
+                .with_type("invalid-model", "Invalid model");
+                p.errors = vec![super::problem::PathError {
+                    path: String::new(),
+                    message: "no .obj, .gltf or .glb part".into(),
+                    file: None,
+                    line: None,
+                }];
+                return Err(p);
+            };
+            let model = uploads.remove(at);
+            (model, uploads)
+        }
+    };
+    let format = Format::from_file_name(&model.name)
+        .or_else(|| {
+            model
+                .content_type
+                .as_deref()
+                .and_then(Format::from_media_type)
+        })
+        .expect("the model part has a format");
+    let limits = state.config.limits();
+    let max_body = state.config.max_body_bytes;
+    let imported = blocking(move || {
+        let files = |name: &str| -> Option<Vec<u8>> {
+            let base = |n: &str| n.rsplit(['/', '\\']).next().unwrap_or(n).to_string();
+            others
+                .iter()
+                .find(|u| u.name == name)
+                .or_else(|| others.iter().find(|u| base(&u.name) == base(name)))
+                .map(|u| u.bytes.clone())
+        };
+        let model = Model {
+            file: &model.name,
+            format,
+            bytes: &model.bytes,
+        };
+        crate::import::import(model, &files, &limits).map(|imported| {
+            let text = serde_json::to_vec(&imported.document).expect("a document serialises");
+            (imported, text)
+        })
+    })
+    .await
+    .map_err(|e| Problem::invalid_model(&e))?;
+    let (imported, text) = imported;
+    let mut warnings = imported.warnings;
+    if text.len() > max_body {
+        warnings.push(format!(
+            "the document is {} bytes, more than this server's max_body_bytes ({max_body}): it cannot be submitted here as it is",
+            text.len()
+        ));
+    }
+    let mut res = ([(header::CONTENT_TYPE, "application/json")], text).into_response();
+    for w in &warnings {
+        res.headers_mut().append(header::WARNING, warning_header(w));
+    }
+    Ok(res)
+}
+
+#[cfg(test)]
+mod warning_headers {
+    #[test]
+    fn quotes_and_non_ascii_are_escaped() {
+        let v = super::warning_header("surface \"é\" clamped");
+        assert_eq!(
+            v.to_str().unwrap(),
+            r#"299 wavrad "surface \"\u{e9}\" clamped""#
+        );
     }
 }
