@@ -499,7 +499,7 @@ return { left: band(0.04, 0.18), right: band(0.82, 0.96), sum, lit: lit / (w * h
 "#;
 
 #[tokio::test(flavor = "multi_thread")]
-async fn the_page_shows_the_solved_cornell_box_in_3d_and_turns_it() {
+async fn the_page_opens_the_obj_cornell_box_solves_it_and_turns_it_in_3d() {
     // WebGL without a GPU: SwiftShader through ANGLE
     let Some(Session {
         client,
@@ -519,31 +519,44 @@ async fn the_page_shows_the_solved_cornell_box_in_3d_and_turns_it() {
         .for_element(Locator::Css("#scene-select option[value='cornell-box']"))
         .await
         .unwrap();
-    // the Cornell box as the file has it, pasted into the text area
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/scenes/cornell-box.json"
-    ))
-    .unwrap();
+    // the Cornell box as a model, OBJ with its MTL, opened from the file input: the page
+    // imports it and puts the document into the text area
+    let fixtures = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/import");
     client
-        .find(Locator::Id("scene-select"))
+        .find(Locator::Id("model-file"))
         .await
         .unwrap()
-        .select_by_value("cornell-box")
+        .send_keys(&format!(
+            "{fixtures}/cornell-box.obj\n{fixtures}/cornell-box.mtl"
+        ))
         .await
         .unwrap();
     until(
-        "the scene in the text area",
+        "the imported model in the text area",
         Duration::from_secs(20),
         || async {
             let v = client
                 .execute("return document.getElementById('doc').value", vec![])
                 .await
                 .unwrap();
-            v.as_str() == Some(text.as_str())
+            let doc: Value = serde_json::from_str(v.as_str().unwrap_or("")).unwrap_or(Value::Null);
+            doc["scene"]["surfaces"]
+                .as_array()
+                .is_some_and(|s| s.iter().any(|s| s.get("mesh").is_some()))
         },
     )
     .await;
+    // then, as a user would in the editor, the camera of the hand-written box
+    let camera = scene("cornell-box")["output"]["camera"].clone();
+    client
+        .execute(
+            "const d = JSON.parse(document.getElementById('doc').value); \
+             d.output = Object.assign(d.output || {}, {camera: arguments[0]}); \
+             document.getElementById('doc').value = JSON.stringify(d, null, 2);",
+            vec![camera],
+        )
+        .await
+        .unwrap();
     client
         .find(Locator::Id("submit"))
         .await

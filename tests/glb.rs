@@ -308,3 +308,69 @@ fn other_kinds_have_no_scene_glb() {
     assert!(images.glb.is_none());
     assert!(images.files().iter().all(|(n, _)| n != "scene.glb"));
 }
+
+/// `scene.glb` of a scene of triangles and a mesh (the tetrahedron on a floor): validator
+/// clean; each triangle or mesh surface is its own triangles, one vertex per position, coloured
+/// by the result's `vertices` (B at the positions) as image.png's exposure shows them; no crack
+/// (every edge of the tetrahedron's three sides shared by two of them, but the three on the
+/// floor, its border).
+#[test]
+fn a_mesh_scene_as_scene_glb() {
+    let (job, outcome, glb) = solve("tetrahedron-mesh");
+    let gltf = gltf::Gltf::from_slice(&glb).unwrap();
+    let blob = gltf.blob.as_deref().expect("a BIN chunk");
+    let scene = gltf.default_scene().unwrap();
+    let extras: serde_json::Value =
+        serde_json::from_str(scene.extras().as_ref().unwrap().get()).unwrap();
+    let white = extras["exposure"].as_f64().unwrap();
+    let SceneKind::ThreeD(d) = &job.scene.kind else {
+        unreachable!()
+    };
+    let nodes: Vec<_> = scene.nodes().collect();
+    assert_eq!(nodes.len(), d.surfaces.len() + 1);
+    let mut meshes = 0;
+    for ((node, surface), result) in nodes.iter().zip(&d.surfaces).zip(&outcome.result.surfaces) {
+        assert_eq!(node.name(), Some(surface.name.as_str()));
+        let Some(vertices) = &result.vertices else {
+            continue;
+        };
+        let prim = node.mesh().unwrap().primitives().next().unwrap();
+        let reader = prim.reader(|_| Some(blob));
+        let colours: Vec<[f32; 3]> = reader.read_colors(0).unwrap().into_rgb_f32().collect();
+        let idx: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+        assert_eq!(colours.len(), vertices.len(), "{}", surface.name);
+        for (c, b) in colours.iter().zip(vertices) {
+            for k in 0..3 {
+                let want = (b[k] / std::f64::consts::PI / white).clamp(0.0, 1.0);
+                assert!(
+                    (c[k] as f64 - want).abs() < 1e-6,
+                    "{}: {c:?} {b:?}",
+                    surface.name
+                );
+            }
+        }
+        if let wavrad::scene::Shape3::Mesh { triangles, .. } = &surface.shape {
+            meshes += 1;
+            assert_eq!(idx.len(), 3 * triangles.len());
+            // every edge once each way between two triangles, or once on the border
+            let mut edges = std::collections::HashMap::new();
+            for t in idx.chunks(3) {
+                for e in 0..3 {
+                    *edges.entry((t[e], t[(e + 1) % 3])).or_insert(0) += 1;
+                }
+            }
+            assert!(edges.values().all(|&n| n == 1), "{}", surface.name);
+            let border = edges.keys().filter(|(a, b)| !edges.contains_key(&(*b, *a)));
+            assert_eq!(
+                border.count(),
+                3,
+                "{}: the base's three edges",
+                surface.name
+            );
+        }
+    }
+    assert!(meshes > 0);
+    if let Some(report) = validate(&glb, "tetrahedron-mesh") {
+        assert_eq!(report["issues"]["numErrors"], 0, "{:#}", report["issues"]);
+    }
+}

@@ -742,7 +742,7 @@ async fn vendored(Path(path): Path<String>) -> Result<Response, Problem> {
 }
 
 /// The example scenes shipped in `scenes/`, embedded.
-pub const SCENES: [(&str, &str); 7] = [
+pub const SCENES: [(&str, &str); 8] = [
     (
         "flatland-parallel",
         include_str!("../../scenes/flatland-parallel.json"),
@@ -765,6 +765,10 @@ pub const SCENES: [(&str, &str); 7] = [
     ),
     ("plates-3d", include_str!("../../scenes/plates-3d.json")),
     ("cornell-box", include_str!("../../scenes/cornell-box.json")),
+    (
+        "tetrahedron-mesh",
+        include_str!("../../scenes/tetrahedron-mesh.json"),
+    ),
 ];
 
 async fn scene_file(Path(file): Path<String>) -> Result<Response, Problem> {
