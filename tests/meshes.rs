@@ -292,3 +292,38 @@ fn parallel_squares_of_triangles_give_howells_form_factor() {
         );
     }
 }
+
+/// Howell's C-14 between two unit squares at a right angle sharing an edge (F = 0.200044),
+/// each a parallelogram or two triangles: the singular near field along the common edge, and
+/// the triangles' own shared diagonal, give the closed form's value.
+#[test]
+fn perpendicular_squares_of_triangles_sharing_an_edge_give_howells_form_factor() {
+    let f = 0.200_044;
+    let surface = |name: &str, c: Vec<[f64; 3]>, tri: bool, e: f64, rho: f64| {
+        if tri {
+            json!({"name": name, "reflectance": rho, "emission": e,
+                "mesh": {"positions": c, "triangles": [[0, 1, 2], [0, 2, 3]]}})
+        } else {
+            json!({"name": name, "reflectance": rho, "emission": e, "corners": c})
+        }
+    };
+    // the floor z = 0 facing up, the wall y = 0 facing +y, sharing the edge along x
+    let floor = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+    let wall = vec![[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 0.0, 0.0]];
+    for (tri_e, tri_r) in [(true, false), (false, true), (true, true)] {
+        let doc = json!({
+            "scene": {"kind": "3d", "surfaces": [
+                surface("wall", wall.clone(), tri_e, 1.0, 0.0),
+                surface("floor", floor.clone(), tri_r, 0.0, 0.5),
+            ]},
+            "solver": {"method": "hierarchical", "order": 1, "epsilon": 1e-4},
+            "output": {"image": {"width": 16, "height": 16}}
+        });
+        let got = run(doc).result.surfaces[1].mean[0];
+        assert!(
+            (got - 0.5 * f).abs() < 1e-3 * 0.5 * f,
+            "wall of triangles {tri_e}, floor of triangles {tri_r}: {got} against {}",
+            0.5 * f
+        );
+    }
+}
