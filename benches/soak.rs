@@ -159,6 +159,15 @@ fn main() {
     for i in 0..cornells {
         kept.push(runtime.block_on(render(cornell(i))));
         sample(i + 1, &mut samples);
+        if i + 1 == 10 || i + 1 == cornells {
+            // right after a job the last solve's memory may not be returned yet: settled
+            std::thread::sleep(std::time::Duration::from_secs(2));
+            println!(
+                "after {} Cornell boxes, settled: RSS {:.1} MB",
+                i + 1,
+                rss_mb(pid)
+            );
+        }
     }
     println!(
         "disk per Cornell box job: {:.2} MB",

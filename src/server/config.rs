@@ -55,7 +55,7 @@ pub struct Config {
     pub max_store_bytes: u64,
     /// Memory the embedded store may use to cache its pages (bytes, or 64MiB…). Not used
     /// with `--database`.
-    #[arg(long, env = "WAVRAD_STORE_CACHE_BYTES", default_value = "32MiB", value_parser = parse_bytes)]
+    #[arg(long, env = "WAVRAD_STORE_CACHE_BYTES", default_value = "4MiB", value_parser = parse_bytes)]
     pub store_cache_bytes: u64,
     /// HTTP requests handled at once; beyond this many, requests are answered 503 at once
     /// (the probes and /metrics are not counted).
@@ -271,6 +271,6 @@ mod tests {
         assert_eq!(c.addr.to_string(), "127.0.0.1:8080");
         assert_eq!(c.limits().max_basis_functions, 4096);
         assert_eq!(c.max_store_bytes, 1 << 30);
-        assert_eq!(c.store_cache_bytes, 32 << 20);
+        assert_eq!(c.store_cache_bytes, 4 << 20);
     }
 }
