@@ -90,6 +90,9 @@ struct Sample {
     disk: f64,
 }
 
+/// What one panel of the plot shows of a sample.
+type Metric = fn(&Sample) -> f64;
+
 fn main() {
     let total: usize = env("WAVRAD_BENCH_JOBS", "1000").parse().unwrap();
     let cornells: usize = env("WAVRAD_BENCH_CORNELL", "100").parse().unwrap();
@@ -144,7 +147,7 @@ fn main() {
             rss: rss_mb(pid),
             disk: disk_mb(dir.path()),
         };
-        if [1, 10, 20, 50, 100].contains(&jobs) || jobs % 100 == 0 {
+        if [1, 10, 20, 50, 100].contains(&jobs) || jobs.is_multiple_of(100) {
             println!(
                 "{jobs:>5} jobs, {:>6.1} s: RSS {:.1} MB, data_dir {:.1} MB",
                 start.elapsed().as_secs_f64(),
@@ -201,7 +204,11 @@ fn main() {
     });
     // 3. mixed sizes
     for i in cornells..total {
-        let doc = if i % 25 == 0 { cornell(i) } else { flatland(i) };
+        let doc = if i.is_multiple_of(25) {
+            cornell(i)
+        } else {
+            flatland(i)
+        };
         runtime.block_on(render(doc));
         sample(i + 1, &mut samples);
     }
@@ -230,7 +237,7 @@ fn plot(samples: &[Sample], cornells: usize, max_store: &str, out: &Path) {
         root.fill(&WHITE).unwrap();
         let panels = root.split_evenly((2, 1));
         let x_max = samples.iter().map(|s| s.jobs).max().unwrap_or(1).max(1);
-        let series: [(&str, fn(&Sample) -> f64, RGBColor); 2] = [
+        let series: [(&str, Metric, RGBColor); 2] = [
             ("resident memory (MB)", |s| s.rss, RGBColor(31, 119, 180)),
             ("data_dir (MB)", |s| s.disk, RGBColor(214, 39, 40)),
         ];
