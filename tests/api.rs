@@ -601,6 +601,58 @@ async fn finished_results_expire_after_result_ttl() {
     assert_eq!(st, StatusCode::NOT_FOUND);
 }
 
+/// With a store limit of one byte every finished job is over it: each is forgotten as soon as
+/// it has finished and then answers as an expired job does (404), while the job queued behind
+/// it, and then running, is kept.
+#[tokio::test(flavor = "multi_thread")]
+async fn finished_jobs_beyond_max_store_bytes_are_forgotten_and_unfinished_ones_kept() {
+    let (_dir, state, router) = setup(|c| {
+        c.max_store_bytes = 1;
+        c.workers = 1;
+        c.job_timeout = Duration::from_millis(1500);
+    });
+    let gone = |id: String| {
+        let router = router.clone();
+        async move {
+            let deadline = Instant::now() + Duration::from_secs(10);
+            while call(&router, get(&format!("/api/v1/jobs/{id}"))).await.0 == StatusCode::OK {
+                assert!(Instant::now() < deadline, "not forgotten");
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+            let (st, _, _) = call(&router, get(&format!("/api/v1/jobs/{id}"))).await;
+            assert_eq!(st, StatusCode::NOT_FOUND);
+            let (st, _, _) = call(&router, get(&format!("/api/v1/jobs/{id}/result"))).await;
+            assert_eq!(st, StatusCode::NOT_FOUND);
+        }
+    };
+    // two jobs that run until job_timeout fails them, one after the other on one worker
+    let (_, _, s) = submit(&router, &named("slow first")).await;
+    let first = s["id"].as_str().unwrap().to_string();
+    wait_until(&state, &first, |s| s == JobState::Running).await;
+    let (_, _, s) = submit(&router, &named("slow second")).await;
+    let second = s["id"].as_str().unwrap().to_string();
+    let (st, _, s) = call(&router, get(&format!("/api/v1/jobs/{second}"))).await;
+    assert_eq!(
+        (st, json(&s)["state"].as_str()),
+        (StatusCode::OK, Some("queued"))
+    );
+    let done = wait_until(&state, &first, |s| s.is_final()).await;
+    assert_eq!(done.state, JobState::Failed);
+    gone(first).await;
+    let (st, _, s) = call(&router, get(&format!("/api/v1/jobs/{second}"))).await;
+    assert_eq!(
+        st,
+        StatusCode::OK,
+        "a queued or running job is never forgotten"
+    );
+    assert!(
+        ["queued", "running"].contains(&json(&s)["state"].as_str().unwrap()),
+        "{s:?}"
+    );
+    wait_until(&state, &second, |s| s.is_final()).await;
+    gone(second).await;
+}
+
 #[tokio::test(flavor = "multi_thread")]
 async fn operations_routes() {
     let (_dir, state, router) = setup(|_| {});

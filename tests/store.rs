@@ -2,7 +2,8 @@
 //! cluster of `WAVRAD_TEST_DATABASE_URL`, see `tests/postgres`). Records, files, removal,
 //! insertion by content id with a capacity, listing, and the queue's claims under leases:
 //! oldest first, each job to one owner even when many claim at once, renewals and results only
-//! by the owner, a lapsed lease taken over, a released job queued again, expiry.
+//! by the owner, a lapsed lease taken over, a released job queued again, expiry, and eviction
+//! beyond a size (`max_store_bytes`): the first finished first, never a queued or running job.
 
 mod postgres;
 
@@ -216,7 +217,119 @@ fn concurrent_claims(store: Arc<dyn Store>) {
     assert_eq!(store.counts().unwrap().running, 40);
 }
 
+/// The bytes of a job as the stores count them: its record (document and status as JSON;
+/// either store may write them a little differently, so only bounds are checked) and its
+/// files.
+fn eviction_beyond_a_size(store: &dyn Store) {
+    assert_eq!(store.stored_bytes().unwrap(), 0);
+    assert_eq!(
+        store.evict(0).unwrap(),
+        Vec::<String>::new(),
+        "nothing there"
+    );
+    let kb = vec![7u8; 1000];
+    let files = |n: usize| -> Vec<(String, &[u8])> {
+        (0..n)
+            .map(|i| (format!("f{i}.png"), kb.as_slice()))
+            .collect()
+    };
+    // created in one order, finished in another: the first finished goes first
+    store
+        .put_finished(
+            &finished(record("late", 1), JobState::Succeeded, 30),
+            &files(3),
+        )
+        .unwrap();
+    store
+        .put_finished(
+            &finished(record("early", 2), JobState::Failed, 10),
+            &files(1),
+        )
+        .unwrap();
+    store
+        .put_finished(
+            &finished(record("mid", 3), JobState::Succeeded, 20),
+            &files(2),
+        )
+        .unwrap();
+    // a queued job and a running one with files of their own (never forgotten)
+    assert_eq!(
+        store.insert(&record("q", 4), 100, true).unwrap(),
+        Inserted::New
+    );
+    assert_eq!(
+        store.insert(&record("r", 0), 100, true).unwrap(),
+        Inserted::New
+    );
+    assert_eq!(store.claim("p", LONG).unwrap().unwrap().status.id, "r");
+    let total = store.stored_bytes().unwrap();
+    let records = total - 6000;
+    assert!(
+        (5 * 200..5 * 2000).contains(&records),
+        "6000 bytes of files and five records of a few hundred bytes: {total}"
+    );
+    assert_eq!(
+        store.evict(total).unwrap(),
+        Vec::<String>::new(),
+        "within the limit"
+    );
+    assert_eq!(
+        store.evict(total - 1).unwrap(),
+        ["early"],
+        "the first finished first"
+    );
+    assert_eq!(store.job("early").unwrap(), None);
+    assert_eq!(
+        store.file("early", "f0.png").unwrap(),
+        None,
+        "files go with their job"
+    );
+    let after = store.stored_bytes().unwrap();
+    assert!(
+        total - after > 1000 && total - after < 1000 + 2000,
+        "{total} → {after}"
+    );
+    // "mid" (2000 bytes of files) is enough to come within after − 1500
+    assert_eq!(store.evict(after - 1500).unwrap(), ["mid"]);
+    assert_eq!(
+        store.evict(0).unwrap(),
+        ["late"],
+        "every finished job, and no other"
+    );
+    let mut left: Vec<String> = store
+        .jobs()
+        .unwrap()
+        .into_iter()
+        .map(|r| r.status.id)
+        .collect();
+    left.sort();
+    assert_eq!(
+        left,
+        ["q", "r"],
+        "queued and running jobs stay, whatever the limit"
+    );
+    assert!(store.stored_bytes().unwrap() > 0);
+    assert_eq!(store.evict(0).unwrap(), Vec::<String>::new());
+    // once the running job has finished it may go; the queued one still stays
+    let running = store.job("r").unwrap().unwrap();
+    assert!(store
+        .finish("p", &finished(running, JobState::Succeeded, 40), &files(1))
+        .unwrap());
+    assert_eq!(store.evict(0).unwrap(), ["r"]);
+    assert_eq!(
+        store.job("q").unwrap().unwrap().status.state,
+        JobState::Queued
+    );
+    assert!(store.remove("q").unwrap());
+    assert_eq!(
+        store.stored_bytes().unwrap(),
+        0,
+        "nothing counted for forgotten jobs"
+    );
+}
+
 fn suite(make: &dyn Fn() -> Arc<dyn Store>) {
+    eviction_beyond_a_size(&*make());
     records_files_and_removal(&*make());
     insertion_listing_and_counts(&*make());
     claims_and_leases(&*make());
@@ -248,6 +361,33 @@ fn the_embedded_store_keeps_its_records_across_a_reopen() {
         store.file("a", "f").unwrap().as_deref(),
         Some(b"x".as_slice())
     );
+}
+
+/// A database written before the stores kept sizes: its sizes are filled in when it is
+/// opened, so that the jobs already there count toward `max_store_bytes`.
+#[test]
+fn the_embedded_store_counts_the_jobs_of_a_database_without_sizes() {
+    let dir = tempfile::tempdir().unwrap();
+    {
+        let db = redb::Database::create(dir.path().join("wavrad.redb")).unwrap();
+        let txn = db.begin_write().unwrap();
+        let r = finished(record("old", 1), JobState::Succeeded, 5);
+        let bytes = serde_json::to_vec(&r).unwrap();
+        txn.open_table(redb::TableDefinition::<&str, &[u8]>::new("jobs"))
+            .unwrap()
+            .insert("old", bytes.as_slice())
+            .unwrap();
+        txn.open_table(redb::TableDefinition::<&str, &[u8]>::new("files"))
+            .unwrap()
+            .insert("old/image.png", [1u8; 500].as_slice())
+            .unwrap();
+        txn.commit().unwrap();
+    }
+    let store = Embedded::open(dir.path()).unwrap();
+    let total = store.stored_bytes().unwrap();
+    assert!(total > 500 && total < 2500, "{total}");
+    assert_eq!(store.evict(0).unwrap(), ["old"]);
+    assert_eq!(store.stored_bytes().unwrap(), 0);
 }
 
 #[test]

@@ -57,6 +57,15 @@ pub struct Config {
     /// Where job records and results are kept (created if missing).
     #[arg(long, env = "WAVRAD_DATA_DIR", default_value = "wavrad-data")]
     pub data_dir: PathBuf,
+    /// Most bytes of stored jobs (documents, statuses, results and images); beyond it the
+    /// oldest finished jobs are forgotten first, never queued or running ones. 0: no limit.
+    /// Bytes, or with a unit: 500MB, 2GiB.
+    #[arg(long, env = "WAVRAD_MAX_STORE_BYTES", default_value = "1GiB", value_parser = parse_bytes)]
+    pub max_store_bytes: u64,
+    /// Memory the embedded store may use to cache its pages (bytes, or 64MiB…). Not used
+    /// with `--database`.
+    #[arg(long, env = "WAVRAD_STORE_CACHE_BYTES", default_value = "4MiB", value_parser = parse_bytes)]
+    pub store_cache_bytes: u64,
     /// HTTP requests handled at once; beyond this many, requests are answered 503 at once
     /// (the probes and /metrics are not counted).
     #[arg(long, env = "WAVRAD_MAX_CONCURRENT_REQUESTS", default_value_t = 256)]
@@ -155,6 +164,40 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
     Duration::try_from_secs_f64(seconds).map_err(|e| e.to_string())
 }
 
+/// A size in bytes: `"1048576"`, `"500kB"`, `"64MiB"`, `"2GB"`, `"1GiB"` (kB, MB, GB, TB are
+/// powers of 1000, KiB, MiB, GiB, TiB of 1024; `B` alone is bytes).
+pub fn parse_bytes(text: &str) -> Result<u64, String> {
+    let text = text.trim();
+    let split = text
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(text.len());
+    let (number, unit) = text.split_at(split);
+    let value: f64 = number
+        .parse()
+        .map_err(|_| format!("not a size: {text:?}"))?;
+    let scale: f64 = match unit.trim() {
+        "" | "B" => 1.0,
+        "kB" | "KB" => 1e3,
+        "MB" => 1e6,
+        "GB" => 1e9,
+        "TB" => 1e12,
+        "KiB" => 1024.0,
+        "MiB" => 1024.0 * 1024.0,
+        "GiB" => 1024.0 * 1024.0 * 1024.0,
+        "TiB" => 1024.0 * 1024.0 * 1024.0 * 1024.0,
+        other => {
+            return Err(format!(
+                "unknown unit {other:?} (use B, kB, MB, GB, TB, KiB, MiB, GiB or TiB)"
+            ))
+        }
+    };
+    let bytes = (value * scale).round();
+    if !(0.0..1.8e19).contains(&bytes) {
+        return Err(format!("not a size: {text:?}"));
+    }
+    Ok(bytes as u64)
+}
+
 /// A PostgreSQL connection URL: `postgres://` or `postgresql://`.
 pub fn parse_database_url(text: &str) -> Result<String, String> {
     let text = text.trim();
@@ -199,6 +242,19 @@ mod tests {
     }
 
     #[test]
+    fn sizes() {
+        assert_eq!(parse_bytes("1048576").unwrap(), 1 << 20);
+        assert_eq!(parse_bytes("64MiB").unwrap(), 64 << 20);
+        assert_eq!(parse_bytes("1GiB").unwrap(), 1 << 30);
+        assert_eq!(parse_bytes("500MB").unwrap(), 500_000_000);
+        assert_eq!(parse_bytes("1.5kB").unwrap(), 1500);
+        assert_eq!(parse_bytes("0").unwrap(), 0);
+        assert!(parse_bytes("lots").is_err());
+        assert!(parse_bytes("5XB").is_err());
+        assert!(parse_bytes("-1").is_err());
+    }
+
+    #[test]
     fn a_job_timeout_of_zero_is_refused() {
         assert!(parse_positive_duration("0s").is_err());
         assert!(parse_positive_duration("0").is_err());
@@ -224,5 +280,7 @@ mod tests {
         let c = Config::with_data_dir("/tmp/x");
         assert_eq!(c.addr.to_string(), "127.0.0.1:8080");
         assert_eq!(c.limits().max_basis_functions, 4096);
+        assert_eq!(c.max_store_bytes, 1 << 30);
+        assert_eq!(c.store_cache_bytes, 4 << 20);
     }
 }

@@ -295,7 +295,8 @@ impl Queue {
         metrics: Arc<Metrics>,
         shutdown: CancellationToken,
     ) -> Result<Queue, StoreError> {
-        let store = Arc::new(Embedded::open(&config.data_dir)?);
+        let cache = usize::try_from(config.store_cache_bytes).unwrap_or(usize::MAX);
+        let store = Arc::new(Embedded::open_with_cache(&config.data_dir, cache)?);
         let (queue, receiver) = Queue::build(config, solve, metrics, store, None)?;
         let requeue = queue.restore()?;
         tokio::spawn(dispatch(queue.clone(), receiver, shutdown.clone()));
@@ -367,6 +368,15 @@ impl Queue {
     /// Loads every record: finished ones as they are (unless expired), the others queued.
     fn restore(&self) -> Result<Vec<Arc<Entry>>, StoreError> {
         let inner = &self.inner;
+        if inner.config.max_store_bytes > 0 {
+            let evicted = inner.store.evict(inner.config.max_store_bytes)?;
+            if !evicted.is_empty() {
+                tracing::info!(
+                    jobs = evicted.len(),
+                    "forgotten at start: the store was over max_store_bytes"
+                );
+            }
+        }
         let records: Vec<Record> = inner.store.jobs()?;
         let limits = inner.config.limits();
         let mut requeue = Vec::new();
@@ -773,7 +783,10 @@ impl Queue {
                 .collect();
             self.write(&entry, status.clone(), &files);
             entry.status.send_replace(status);
+            self.evict();
         }
+        drop(files);
+        release_memory();
         inner.running.fetch_sub(1, Ordering::SeqCst);
         inner.idle.notify_waiters();
     }
@@ -789,6 +802,37 @@ impl Queue {
         if entry.stop.load(Ordering::SeqCst) == CANCEL {
             // Deleted while this write was under way: forget it again.
             let _ = self.inner.store.remove(&entry.id);
+        }
+    }
+
+    /// Forgets the oldest finished jobs while the store holds more than `max_store_bytes`
+    /// (when it is not 0). They answer as expired ones do: 404, as if never posted.
+    fn evict(&self) {
+        let max = self.inner.config.max_store_bytes;
+        if max == 0 {
+            return;
+        }
+        match self.inner.store.evict(max) {
+            Ok(ids) if !ids.is_empty() => {
+                let mut entries = self.inner.entries.lock().expect("entries lock");
+                for id in &ids {
+                    // a job that is posted again and queued under the same id keeps its entry
+                    if entries
+                        .get(id)
+                        .is_some_and(|e| e.status.borrow().state.is_final())
+                    {
+                        entries.remove(id);
+                    }
+                }
+                drop(entries);
+                tracing::info!(
+                    jobs = ids.len(),
+                    max_store_bytes = max,
+                    "forgotten: the store was over max_store_bytes"
+                );
+            }
+            Ok(_) => {}
+            Err(e) => tracing::error!(error = %e, "could not forget old jobs"),
         }
     }
 
@@ -811,6 +855,27 @@ impl Queue {
         }
     }
 }
+
+/// Gives the memory a finished solve freed back to the system.
+///
+/// A solve allocates on every thread of its pool (the Cornell box: tens of MB of links,
+/// blocks and images). glibc's malloc keeps what a thread frees in that thread's arena (up to
+/// eight arenas per core) and gives pages back to the system only from the top of an arena,
+/// so the free memory of every finished solve stayed resident, scattered over the arenas: the
+/// resident memory grew with the jobs (see "Memory and disk" in `benches/README.md`).
+/// `malloc_trim(0)` returns the whole free pages of every arena (glibc ≥ 2.8); it costs
+/// about a millisecond per solve. Other allocators return memory on their own.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+pub fn release_memory() {
+    // SAFETY: malloc_trim has no preconditions; it only releases free memory.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
+/// Gives the memory a finished solve freed back to the system (nothing to do here).
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+pub fn release_memory() {}
 
 /// The status of a job just accepted.
 fn new_status(id: &str, job: &Job) -> JobStatus {
@@ -904,7 +969,7 @@ async fn dispatch(
     }
 }
 
-/// Expires old results now and then.
+/// Expires old results now and then, and keeps the store within `max_store_bytes`.
 async fn janitor(queue: Queue, shutdown: CancellationToken) {
     let every = (queue.inner.config.result_ttl / 4)
         .clamp(Duration::from_millis(200), Duration::from_secs(60));
@@ -914,7 +979,11 @@ async fn janitor(queue: Queue, shutdown: CancellationToken) {
             _ = shutdown.cancelled() => return,
             _ = tick.tick() => {
                 let q = queue.clone();
-                let _ = tokio::task::spawn_blocking(move || q.expire()).await;
+                let _ = tokio::task::spawn_blocking(move || {
+                    q.expire();
+                    q.evict();
+                })
+                .await;
             }
         }
     }

@@ -188,6 +188,7 @@ impl Queue {
                     match inner.store.finish(&shared.owner, &record, files) {
                         Ok(true) => {
                             entry.status.send_replace(status);
+                            self.evict();
                             break;
                         }
                         Ok(false) => {
@@ -430,7 +431,8 @@ async fn health(queue: Queue, shutdown: CancellationToken) {
     }
 }
 
-/// Forgets finished jobs older than `result_ttl` (the store lets one process at a time).
+/// Forgets finished jobs older than `result_ttl`, and the oldest finished ones beyond
+/// `max_store_bytes` (the store lets one process at a time).
 async fn janitor(queue: Queue, shutdown: CancellationToken) {
     let ttl = queue.inner.config.result_ttl;
     let every = (ttl / 4).clamp(Duration::from_millis(200), Duration::from_secs(60));
@@ -447,5 +449,7 @@ async fn janitor(queue: Queue, shutdown: CancellationToken) {
             Ok(Err(e)) => tracing::warn!(error = %e, "could not expire old jobs"),
             _ => {}
         }
+        let q = queue.clone();
+        let _ = tokio::task::spawn_blocking(move || q.evict()).await;
     }
 }

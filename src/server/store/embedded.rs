@@ -1,7 +1,14 @@
 //! The embedded store: job records and files kept on disk under `data_dir`, in one redb
-//! database (`data_dir/wavrad.redb`); no external server, one process. Three tables: `jobs`
+//! database (`data_dir/wavrad.redb`); no external server, one process. Four tables: `jobs`
 //! (id → the job's [`Record`] as JSON), `files` (`id/name` → bytes: `result.json` and the
-//! images) and `leases` (id → `owner` and the lease's end, for jobs taken by [`Store::claim`]).
+//! images), `leases` (id → `owner` and the lease's end, for jobs taken by [`Store::claim`])
+//! and `sizes` (id → the bytes of its record and of its files, and when it finished), kept
+//! with every write so that [`Store::evict`] need not read the files. A database written
+//! before `sizes` existed gets it filled in when it is opened.
+//!
+//! redb caches the pages it reads and writes; its cache is given a size
+//! ([`Embedded::open_with_cache`], `--store-cache-bytes`): its default, 1 GiB, let the
+//! resident memory grow with every image read.
 //!
 //! Every write is one transaction, committed durably before the caller goes on (except
 //! [`Store::put_job_lazily`]), so that a job answered 202 survives a crash: a finished job's
@@ -17,6 +24,10 @@ use std::time::Duration;
 const JOBS: TableDefinition<&str, &[u8]> = TableDefinition::new("jobs");
 const FILES: TableDefinition<&str, &[u8]> = TableDefinition::new("files");
 const LEASES: TableDefinition<&str, &[u8]> = TableDefinition::new("leases");
+/// id → (bytes of the record, bytes of the files, `finished_ms` of a finished job or
+/// [`UNFINISHED`]).
+const SIZES: TableDefinition<&str, (u64, u64, u64)> = TableDefinition::new("sizes");
+const UNFINISHED: u64 = u64::MAX;
 
 fn dberr<E: Into<redb::Error>>(e: E) -> StoreError {
     StoreError::Db(Box::new(e.into()))
@@ -33,16 +44,62 @@ pub struct Embedded {
 }
 
 impl Embedded {
-    /// Opens (or creates) the database under `dir`.
+    /// The page cache of [`Embedded::open`] (the default of `--store-cache-bytes`).
+    pub const DEFAULT_CACHE_BYTES: usize = 4 << 20;
+
+    /// Opens (or creates) the database under `dir`, with a page cache of
+    /// [`Self::DEFAULT_CACHE_BYTES`].
     pub fn open(dir: &Path) -> Result<Embedded, StoreError> {
+        Self::open_with_cache(dir, Self::DEFAULT_CACHE_BYTES)
+    }
+
+    /// Opens (or creates) the database under `dir`; redb caches at most `cache_bytes` of its
+    /// pages in memory.
+    pub fn open_with_cache(dir: &Path, cache_bytes: usize) -> Result<Embedded, StoreError> {
         std::fs::create_dir_all(dir)?;
-        let db = Database::create(dir.join("wavrad.redb")).map_err(dberr)?;
+        let db = Database::builder()
+            .set_cache_size(cache_bytes)
+            .create(dir.join("wavrad.redb"))
+            .map_err(dberr)?;
         let txn = db.begin_write().map_err(dberr)?;
         txn.open_table(JOBS).map_err(dberr)?;
         txn.open_table(FILES).map_err(dberr)?;
         txn.open_table(LEASES).map_err(dberr)?;
+        txn.open_table(SIZES).map_err(dberr)?;
+        Self::fill_in_sizes(&txn)?;
         txn.commit().map_err(dberr)?;
         Ok(Embedded { db })
+    }
+
+    /// Writes the sizes of the jobs that have none (a database from before `sizes`).
+    fn fill_in_sizes(txn: &WriteTransaction) -> Result<(), StoreError> {
+        let missing: Vec<Record> = {
+            let jobs = txn.open_table(JOBS).map_err(dberr)?;
+            let sizes = txn.open_table(SIZES).map_err(dberr)?;
+            let mut out = Vec::new();
+            for row in jobs.iter().map_err(dberr)? {
+                let (k, v) = row.map_err(dberr)?;
+                if sizes.get(k.value()).map_err(dberr)?.is_none() {
+                    out.push(serde_json::from_slice(v.value())?);
+                }
+            }
+            out
+        };
+        for record in &missing {
+            let id = record.id();
+            let files = {
+                let files = txn.open_table(FILES).map_err(dberr)?;
+                let (lo, hi) = (format!("{id}/"), format!("{id}0"));
+                let mut n = 0u64;
+                for row in files.range(lo.as_str()..hi.as_str()).map_err(dberr)? {
+                    n += row.map_err(dberr)?.1.value().len() as u64;
+                }
+                n
+            };
+            Self::write_record(txn, record)?;
+            Self::add_file_bytes(txn, id, files as i64)?;
+        }
+        Ok(())
     }
 
     fn write_record(txn: &WriteTransaction, record: &Record) -> Result<(), StoreError> {
@@ -51,6 +108,30 @@ impl Embedded {
             .map_err(dberr)?
             .insert(record.id(), bytes.as_slice())
             .map_err(dberr)?;
+        let mut sizes = txn.open_table(SIZES).map_err(dberr)?;
+        let files = sizes
+            .get(record.id())
+            .map_err(dberr)?
+            .map_or(0, |v| v.value().1);
+        let finished = match record.status.finished_ms {
+            Some(t) if record.status.state.is_final() => t.min(UNFINISHED - 1),
+            _ => UNFINISHED,
+        };
+        sizes
+            .insert(record.id(), (bytes.len() as u64, files, finished))
+            .map_err(dberr)?;
+        Ok(())
+    }
+
+    /// Adds `delta` to the bytes of a job's files in `sizes`.
+    fn add_file_bytes(txn: &WriteTransaction, id: &str, delta: i64) -> Result<(), StoreError> {
+        let mut sizes = txn.open_table(SIZES).map_err(dberr)?;
+        let (record, files, finished) = sizes
+            .get(id)
+            .map_err(dberr)?
+            .map_or((0, 0, UNFINISHED), |v| v.value());
+        let files = files.saturating_add_signed(delta);
+        sizes.insert(id, (record, files, finished)).map_err(dberr)?;
         Ok(())
     }
 
@@ -59,13 +140,21 @@ impl Embedded {
         id: &str,
         files: &[(String, &[u8])],
     ) -> Result<(), StoreError> {
-        let mut table = txn.open_table(FILES).map_err(dberr)?;
-        for (name, data) in files {
-            table
-                .insert(format!("{id}/{name}").as_str(), *data)
-                .map_err(dberr)?;
+        if files.is_empty() {
+            return Ok(());
         }
-        Ok(())
+        let mut delta = 0i64;
+        {
+            let mut table = txn.open_table(FILES).map_err(dberr)?;
+            for (name, data) in files {
+                let old = table
+                    .insert(format!("{id}/{name}").as_str(), *data)
+                    .map_err(dberr)?
+                    .map_or(0, |v| v.value().len());
+                delta += data.len() as i64 - old as i64;
+            }
+        }
+        Self::add_file_bytes(txn, id, delta)
     }
 
     fn read_record(txn: &WriteTransaction, id: &str) -> Result<Option<Record>, StoreError> {
@@ -112,6 +201,10 @@ impl Embedded {
             .map_err(dberr)?
             .is_some();
         txn.open_table(LEASES)
+            .map_err(dberr)?
+            .remove(id)
+            .map_err(dberr)?;
+        txn.open_table(SIZES)
             .map_err(dberr)?
             .remove(id)
             .map_err(dberr)?;
@@ -373,6 +466,47 @@ impl Store for Embedded {
         }
         txn.commit().map_err(dberr)?;
         Ok(n)
+    }
+
+    fn stored_bytes(&self) -> Result<u64, StoreError> {
+        let txn = self.db.begin_read().map_err(dberr)?;
+        let sizes = txn.open_table(SIZES).map_err(dberr)?;
+        let mut total = 0u64;
+        for row in sizes.iter().map_err(dberr)? {
+            let (record, files, _) = row.map_err(dberr)?.1.value();
+            total = total.saturating_add(record).saturating_add(files);
+        }
+        Ok(total)
+    }
+
+    /// Committed without waiting for the disk: an eviction lost in a crash is done again.
+    fn evict(&self, max_bytes: u64) -> Result<Vec<String>, StoreError> {
+        let mut txn = self.db.begin_write().map_err(dberr)?;
+        txn.set_durability(redb::Durability::None);
+        let (total, finished) = {
+            let sizes = txn.open_table(SIZES).map_err(dberr)?;
+            let mut total = 0u64;
+            let mut finished = Vec::new();
+            for row in sizes.iter().map_err(dberr)? {
+                let (k, v) = row.map_err(dberr)?;
+                let (record, files, at) = v.value();
+                let bytes = record.saturating_add(files);
+                total = total.saturating_add(bytes);
+                if at != UNFINISHED {
+                    finished.push((k.value().to_string(), bytes, at));
+                }
+            }
+            (total, finished)
+        };
+        let ids = super::to_evict(finished, total, max_bytes);
+        if ids.is_empty() {
+            return Ok(ids);
+        }
+        for id in &ids {
+            Self::remove_in(&txn, id)?;
+        }
+        txn.commit().map_err(dberr)?;
+        Ok(ids)
     }
 
     fn ping(&self) -> Result<(), StoreError> {

@@ -136,8 +136,32 @@ pub trait Store: Send + Sync {
     /// Forgets the jobs that finished at or before `before_ms`; how many. With a shared
     /// database one process at a time does it.
     fn expire(&self, before_ms: u64) -> Result<usize, StoreError>;
+    /// The bytes kept for every job: its document and status as stored and the bytes of its
+    /// files (the database's own overhead, pages, indexes and free space, is not counted).
+    fn stored_bytes(&self) -> Result<u64, StoreError>;
+    /// Forgets finished jobs (succeeded, failed or cancelled), the one that finished first
+    /// first (then by id), until at most `max_bytes` are kept ([`Store::stored_bytes`]) or
+    /// no finished job is left; their ids. Queued and running jobs are never forgotten.
+    /// With a shared database one process at a time does it.
+    fn evict(&self, max_bytes: u64) -> Result<Vec<String>, StoreError>;
     /// Whether the store answers.
     fn ping(&self) -> Result<(), StoreError>;
+}
+
+/// Which of `jobs` (id, bytes, finished at, for finished jobs only) to forget so that
+/// `total` bytes come down to `max_bytes`: the first finished first, then by id.
+pub fn to_evict(mut jobs: Vec<(String, u64, u64)>, total: u64, max_bytes: u64) -> Vec<String> {
+    jobs.sort_by(|a, b| (a.2, &a.0).cmp(&(b.2, &b.0)));
+    let mut total = total;
+    let mut out = Vec::new();
+    for (id, bytes, _) in jobs {
+        if total <= max_bytes {
+            break;
+        }
+        total = total.saturating_sub(bytes);
+        out.push(id);
+    }
+    out
 }
 
 /// The status of a job as [`Store::claim`] leaves it: running, at the start.

@@ -10,8 +10,10 @@
 //! that has run out, with `FOR UPDATE SKIP LOCKED`, so that two processes never take the same
 //! job and neither waits for the other; leases are on the database's clock, so that the
 //! machines' clocks need not agree. [`Store::finish`] writes the result only while its caller
-//! still owns the job (one row lock decides), so that it is written once. Expiry takes a
-//! transaction-scoped advisory lock: one process at a time.
+//! still owns the job (one row lock decides), so that it is written once. Expiry and eviction
+//! (`max_store_bytes`) take a transaction-scoped advisory lock: one process at a time. The
+//! bytes of a job are those of its `document` and `status` and of its files' `data`
+//! (`octet_length`, which reads the sizes without fetching the values).
 //!
 //! The calls block: each runs on the tokio runtime the store was opened on (so it must not be
 //! called from that runtime's own threads; `spawn_blocking` and the solver's threads are fine),
@@ -578,6 +580,66 @@ impl Store for Postgres {
                 .map_err(pgerr)?;
             txn.commit().await.map_err(pgerr)?;
             Ok(n as usize)
+        })
+    }
+
+    fn stored_bytes(&self) -> Result<u64, StoreError> {
+        self.run(async {
+            let client = self.pool.get().await.map_err(pgerr)?;
+            let total: i64 = client
+                .query_one(
+                    "SELECT (coalesce((SELECT sum(octet_length(document) + octet_length(status))
+                                       FROM wavrad_jobs), 0)
+                           + coalesce((SELECT sum(octet_length(data)) FROM wavrad_files), 0))::bigint",
+                    &[],
+                )
+                .await
+                .map_err(pgerr)?
+                .get(0);
+            Ok(u64::try_from(total).unwrap_or(0))
+        })
+    }
+
+    fn evict(&self, max_bytes: u64) -> Result<Vec<String>, StoreError> {
+        self.run(async {
+            let mut client = self.pool.get().await.map_err(pgerr)?;
+            let txn = client.transaction().await.map_err(pgerr)?;
+            let locked: bool = txn
+                .query_one("SELECT pg_try_advisory_xact_lock($1)", &[&EXPIRY_LOCK])
+                .await
+                .map_err(pgerr)?
+                .get(0);
+            if !locked {
+                return Ok(vec![]);
+            }
+            // every job's bytes, then the finished ones in the order they go, each with the
+            // bytes forgotten up to and including it: a job goes while what is left before it
+            // is still more than the limit
+            let rows = txn
+                .query(
+                    "WITH sizes AS (
+                         SELECT j.id, j.state, j.finished_ms,
+                                octet_length(j.document) + octet_length(j.status)
+                                    + coalesce(f.bytes, 0) AS bytes
+                         FROM wavrad_jobs j
+                         LEFT JOIN (SELECT job_id, sum(octet_length(data)) AS bytes
+                                    FROM wavrad_files GROUP BY job_id) f ON f.job_id = j.id),
+                     total AS (SELECT coalesce(sum(bytes), 0) AS t FROM sizes),
+                     ranked AS (
+                         SELECT id, bytes,
+                                sum(bytes) OVER (ORDER BY finished_ms, id) AS upto
+                         FROM sizes
+                         WHERE state IN ('succeeded', 'failed', 'cancelled')
+                           AND finished_ms IS NOT NULL)
+                     DELETE FROM wavrad_jobs WHERE id IN (
+                         SELECT id FROM ranked, total WHERE total.t - (ranked.upto - ranked.bytes) > $1::bigint)
+                     RETURNING id",
+                    &[&ms(max_bytes)],
+                )
+                .await
+                .map_err(pgerr)?;
+            txn.commit().await.map_err(pgerr)?;
+            Ok(rows.iter().map(|r| r.get::<_, String>(0)).collect())
         })
     }
 
