@@ -41,13 +41,17 @@ pub fn mul(a: V3, b: V3) -> V3 {
     [a[0] * b[0], a[1] * b[1], a[2] * b[2]]
 }
 
-/// One parallelogram p(s, t) = p0 + s e1 + t e2 as the spec defines it.
+/// One parallelogram p(s, t) = p0 + s e1 + t e2 as the spec defines it, or with `tri` the
+/// triangle s + t ≤ 1 of the same map (a `triangle`, or one triangle of a `mesh`).
 pub struct Quad {
     pub p0: V3,
     pub e1: V3,
     pub e2: V3,
     pub n: V3,
     pub area: f64,
+    pub tri: bool,
+    /// The document surface it belongs to.
+    pub owner: usize,
     pub rho: V3,
     pub emission: V3,
     pub region: ([f64; 2], [f64; 2]),
@@ -74,7 +78,7 @@ impl Quad {
         }
         let r = cross(q, self.e1);
         let t = dot(dir, r) * inv;
-        if !(0.0..=1.0).contains(&t) {
+        if !(0.0..=1.0).contains(&t) || (self.tri && s + t > 1.0) {
             return None;
         }
         Some(dot(self.e2, r) * inv)
@@ -99,36 +103,65 @@ pub fn point(v: &Value) -> V3 {
 }
 
 pub fn quads(doc: &Value) -> Vec<Quad> {
-    doc["scene"]["surfaces"]
+    let mut out = Vec::new();
+    for (owner, s) in doc["scene"]["surfaces"]
         .as_array()
         .expect("surfaces")
         .iter()
-        .map(|s| {
-            let c = s["corners"].as_array().expect("corners");
-            let p0 = point(&c[0]);
-            let e1 = sub(point(&c[1]), p0);
-            let e2 = sub(point(&c[3]), p0);
+        .enumerate()
+    {
+        let rho = rgb(s.get("reflectance"), 0.0);
+        let emission = rgb(s.get("emission"), 0.0);
+        let make = |p0: V3, p1: V3, p2: V3, tri: bool, region| {
+            let (e1, e2) = (sub(p1, p0), sub(p2, p0));
             let n = cross(e1, e2);
             let area = dot(n, n).sqrt();
-            let region = match s.get("emission_region") {
-                Some(r) => (
-                    [r["s"][0].as_f64().unwrap(), r["s"][1].as_f64().unwrap()],
-                    [r["t"][0].as_f64().unwrap(), r["t"][1].as_f64().unwrap()],
-                ),
-                None => ([0.0, 1.0], [0.0, 1.0]),
-            };
             Quad {
                 p0,
                 e1,
                 e2,
                 n: scale(n, 1.0 / area),
-                area,
-                rho: rgb(s.get("reflectance"), 0.0),
-                emission: rgb(s.get("emission"), 0.0),
+                area: if tri { 0.5 * area } else { area },
+                tri,
+                owner,
+                rho,
+                emission,
                 region,
             }
-        })
-        .collect()
+        };
+        let whole = ([0.0, 1.0], [0.0, 1.0]);
+        if let Some(c) = s.get("corners").and_then(Value::as_array) {
+            let region = match s.get("emission_region") {
+                Some(r) => (
+                    [r["s"][0].as_f64().unwrap(), r["s"][1].as_f64().unwrap()],
+                    [r["t"][0].as_f64().unwrap(), r["t"][1].as_f64().unwrap()],
+                ),
+                None => whole,
+            };
+            out.push(make(
+                point(&c[0]),
+                point(&c[1]),
+                point(&c[3]),
+                false,
+                region,
+            ));
+        } else if let Some(t) = s.get("triangle").and_then(Value::as_array) {
+            out.push(make(point(&t[0]), point(&t[1]), point(&t[2]), true, whole));
+        } else {
+            let m = &s["mesh"];
+            let p: Vec<V3> = m["positions"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(point)
+                .collect();
+            for t in m["triangles"].as_array().unwrap() {
+                let i = [0, 1, 2].map(|k| t[k].as_u64().unwrap() as usize);
+                out.push(make(p[i[0]], p[i[1]], p[i[2]], true, whole));
+            }
+        }
+    }
+    out
 }
 
 pub struct Tracer {
@@ -196,6 +229,12 @@ impl Tracer {
             let (rs, rt) = q.region;
             let s = rs[0] + (rs[1] - rs[0]) * rng.random::<f64>();
             let t = rt[0] + (rt[1] - rt[0]) * rng.random::<f64>();
+            // a triangle: the square folded onto it along its diagonal
+            let (s, t) = if q.tri && s + t > 1.0 {
+                (1.0 - s, 1.0 - t)
+            } else {
+                (s, t)
+            };
             let y = q.at(s, t);
             let d = sub(y, x);
             let r2 = dot(d, d);
@@ -242,6 +281,54 @@ impl Tracer {
             }
         }
         total
+    }
+
+    /// The mean of B over each document surface from `samples` stratified points (by area
+    /// over its patches), with its standard error.
+    pub fn surface_means(&self, samples: usize, seed: u64) -> Vec<(V3, V3)> {
+        let surfaces = self.quads.iter().map(|q| q.owner + 1).max().unwrap_or(0);
+        (0..surfaces)
+            .map(|owner| {
+                let patches: Vec<usize> = (0..self.quads.len())
+                    .filter(|&i| self.quads[i].owner == owner)
+                    .collect();
+                let total: f64 = patches.iter().map(|&i| self.quads[i].area).sum();
+                let mut cumulative = Vec::new();
+                let mut acc = 0.0;
+                for &i in &patches {
+                    acc += self.quads[i].area / total;
+                    cumulative.push(acc);
+                }
+                let values: Vec<V3> = (0..samples)
+                    .into_par_iter()
+                    .map(|k| {
+                        let mut rng =
+                            SmallRng::seed_from_u64(seed ^ ((owner as u64) << 40) ^ k as u64);
+                        let u = (k as f64 + rng.random::<f64>()) / samples as f64;
+                        let at = cumulative
+                            .partition_point(|&c| c < u)
+                            .min(patches.len() - 1);
+                        let on = patches[at];
+                        let q = &self.quads[on];
+                        let (mut s, mut t) = (rng.random::<f64>(), rng.random::<f64>());
+                        if q.tri && s + t > 1.0 {
+                            (s, t) = (1.0 - s, 1.0 - t);
+                        }
+                        let x = q.at(s, t);
+                        let e = if q.emits(s, t) { q.emission } else { [0.0; 3] };
+                        add(e, mul(q.rho, self.gathered(x, on, &mut rng)))
+                    })
+                    .collect();
+                let m = samples as f64;
+                let mean = scale(values.iter().fold([0.0; 3], |a, v| add(a, *v)), 1.0 / m);
+                let err = [0, 1, 2].map(|c| {
+                    let var =
+                        values.iter().map(|v| (v[c] - mean[c]).powi(2)).sum::<f64>() / (m - 1.0);
+                    (var / m).sqrt()
+                });
+                (mean, err)
+            })
+            .collect()
     }
 
     /// Cell means of B on every surface (`grid × grid`, rows by t then s) from
