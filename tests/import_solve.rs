@@ -84,11 +84,13 @@ fn check(file: &str) {
     doc["output"] = hand["output"].clone();
     let got = solve(&doc);
     assert_eq!(got.len(), want.len());
+    let mut worst = 0.0f64;
     for (object, (sum, a)) in &want {
         let w = sum.map(|x| x / a);
         let g = got[object];
         for c in 0..3 {
             let error = (g[c] - w[c]).abs() / w[c].abs().max(1e-12);
+            worst = worst.max(error);
             assert!(
                 error <= 3e-3,
                 "{file}: {object} channel {c}: {} against {} ({:.3} %)",
@@ -98,16 +100,18 @@ fn check(file: &str) {
             );
         }
     }
+    eprintln!(
+        "{file}: the largest gap of an object's mean {:.3} %",
+        100.0 * worst
+    );
 }
 
 #[test]
-#[ignore = "the covered part under a solid (three_d::cover) is for parallelograms only: a floor of triangles under the blocks leaves their faces 1–6 % dark"]
 fn the_imported_obj_cornell_box_solves_as_the_hand_written_one() {
     check("cornell-box.obj");
 }
 
 #[test]
-#[ignore = "the covered part under a solid (three_d::cover) is for parallelograms only: a floor of triangles under the blocks leaves their faces 1–6 % dark"]
 fn the_imported_glb_cornell_box_solves_as_the_hand_written_one() {
     check("cornell-box.glb");
 }

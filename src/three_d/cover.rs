@@ -21,10 +21,15 @@
 //! ceiling: the ceiling behind it sees only its back). Each cell of the hierarchy's finest
 //! level is probed at its corners and centre; the cells where the outline passes, and their
 //! neighbours, are resolved on a [`SUB`] × [`SUB`] grid.
+//!
+//! A triangle patch is masked on the same grid of its (s, t) square, of which it is the half
+//! s + t ≤ 1; its elements' Gram matrices are those of the orthonormal polynomials on
+//! triangles ([`Mask::exposure_triangle`]).
 
 use crate::math::basis::legendre::interval_gram;
+use crate::math::triangle::{TriangleBasis, TriangleRule};
 use crate::three_d::bvh::Bvh;
-use crate::three_d::geometry::{add, cross, dot, normalize, scale, Parallelogram, V3};
+use crate::three_d::geometry::{add, cross, dot, normalize, scale, Parallelogram, Piece, V3};
 use crate::three_d::steps::STEP;
 use rayon::prelude::*;
 
@@ -104,8 +109,7 @@ impl Mask {
     ) -> Vec<Option<Mask>> {
         (0..quads.len())
             .map(|i| {
-                // the covered part is a parallelogram's: a triangle patch has none
-                (!quads[i].tri && (!contacts(quads, i).is_empty() || lidded(quads, i)))
+                (!contacts(quads, i).is_empty() || lidded(quads, i))
                     .then(|| Mask::probe(quads, bvh, i, res(i)))
                     .filter(|m| m.cells.iter().any(|c| *c != Cell::Open))
             })
@@ -324,6 +328,112 @@ impl Mask {
     }
 }
 
+impl Mask {
+    /// The exposure of a triangle piece of a triangle patch ([`Piece`]: half of a square
+    /// aligned to the grid) for the orthonormal polynomials of order `k − 1` on it
+    /// ([`TriangleBasis`]), in `k² × k²` matrices whose first (m+1)(m+2)/2 rows and columns
+    /// are used. The piece is the union of halves of finest cells, each open, covered or cut;
+    /// a cut half is the union of halves of its sub-cells (each half of a sub-cell lies in one
+    /// half of the cell). G = (1 / area(T̂)) ∫ χ φ_a φ_c, exact on every open part by a triangle
+    /// rule of degree 2m, so that G = I on an open piece.
+    pub fn exposure_triangle(&self, piece: &Piece, k: usize) -> Exposure {
+        let r = self.res as f64;
+        let idx = |x: f64| (x * r).round() as usize;
+        let (s0, t0) = (idx(piece.s[0]), idx(piece.t[0]));
+        let n = idx(piece.s[1]) - s0;
+        // the halves of finest cells in the piece: (cell s, cell t, upper half)
+        let mut halves = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let (a, b) = if piece.upper {
+                    (n - 1 - i, n - 1 - j)
+                } else {
+                    (i, j)
+                };
+                if a + b + 1 < n {
+                    halves.push((s0 + i, t0 + j, false));
+                    halves.push((s0 + i, t0 + j, true));
+                } else if a + b + 1 == n {
+                    halves.push((s0 + i, t0 + j, piece.upper));
+                }
+            }
+        }
+        let state = |h: &(usize, usize, bool)| &self.cells[h.1 * self.res + h.0];
+        if halves.iter().all(|h| *state(h) == Cell::Open) {
+            return Exposure::Open;
+        }
+        if halves.iter().all(|h| *state(h) == Cell::Covered) {
+            return Exposure::Covered;
+        }
+        let basis = TriangleBasis::of_order(k - 1);
+        let nb = crate::math::triangle::dimension(k - 1);
+        let rule = TriangleRule::for_degree(2 * (k - 1));
+        let kk = k * k;
+        let mut gram = vec![0.0; kk * kk];
+        let h = 1.0 / r;
+        let mut phi = vec![0.0; nb];
+        // adds the open triangle with corner (s, t) and legs ±w (upper: the half turned)
+        let mut add = |s: f64, t: f64, w: f64, upper: bool| {
+            // its share of the piece's reference triangle: (w / size)², of area ½ each
+            let size = piece.s[1] - piece.s[0];
+            let share = (w / size).powi(2);
+            for (x, wt) in rule.points.iter().zip(&rule.weights) {
+                let (ps, pt) = if upper {
+                    (s - x[0] * w, t - x[1] * w)
+                } else {
+                    (s + x[0] * w, t + x[1] * w)
+                };
+                let (u, v) = piece.local(ps, pt);
+                basis.eval(u, v, &mut phi);
+                for a in 0..nb {
+                    for c in 0..nb {
+                        gram[a * kk + c] += share * wt * phi[a] * phi[c];
+                    }
+                }
+            }
+        };
+        let sub = h / SUB as f64;
+        for cell in &halves {
+            let (cs, ct, upper) = *cell;
+            let (x0, y0) = (cs as f64 * h, ct as f64 * h);
+            match state(cell) {
+                Cell::Open if upper => add(x0 + h, y0 + h, h, true),
+                Cell::Open => add(x0, y0, h, false),
+                Cell::Covered => {}
+                Cell::Cut(bits) => {
+                    for j in 0..SUB {
+                        for i in 0..SUB {
+                            if is_set(bits, j * SUB + i) {
+                                continue;
+                            }
+                            let (x, y) = (x0 + i as f64 * sub, y0 + j as f64 * sub);
+                            // the sub-cell's lower half lies in the cell's lower half when
+                            // i + j + 1 ≤ SUB, its upper half when i + j + 2 ≤ SUB
+                            if (i + j < SUB) != upper {
+                                add(x, y, sub, false);
+                            }
+                            if (i + j + 2 <= SUB) != upper {
+                                add(x + sub, y + sub, sub, true);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // φ_0 = 1: G_00 is the exposed share of the area
+        if gram[0] <= 1e-12 {
+            return Exposure::Covered;
+        }
+        Exposure::Partial(Box::new(Partial {
+            inverse: pseudo_inverse(&gram, kk),
+            gram,
+            // a triangle receiver's visible fraction is one number
+            // ([`crate::three_d::visibility::Seen`]), never a step over cells
+            steps: Vec::new(),
+        }))
+    }
+}
+
 fn is_set(bits: &[u64; SUB * SUB / 64], b: usize) -> bool {
     bits[b / 64] >> (b % 64) & 1 == 1
 }
@@ -355,9 +465,6 @@ pub fn contacts(quads: &[Parallelogram], i: usize) -> Vec<[[f64; 2]; 2]> {
     let tol = 1e-9 * q.diameter();
     let inside = |x: f64| (1e-6..1.0 - 1e-6).contains(&x);
     let mut lines = Vec::new();
-    if q.tri {
-        return lines;
-    }
     for (j, o) in quads.iter().enumerate() {
         if j == i {
             continue;
@@ -369,7 +476,9 @@ pub fn contacts(quads: &[Parallelogram], i: usize) -> Vec<[[f64; 2]; 2]> {
                 continue;
             }
             let (s, t) = q.params(scale(add(a, b), 0.5));
-            if q.side(a).abs() < tol && q.side(b).abs() < tol && inside(s) && inside(t) {
+            // (a triangle patch: its half s + t < 1)
+            let within = !q.tri || s + t < 1.0 - 1e-6;
+            if q.side(a).abs() < tol && q.side(b).abs() < tol && inside(s) && inside(t) && within {
                 let (pa, pb) = (q.params(a), q.params(b));
                 lines.push([[pa.0, pa.1], [pb.0, pb.1]]);
             }
@@ -391,14 +500,13 @@ fn lidded(quads: &[Parallelogram], i: usize) -> bool {
         let gap = q.side(o.p0);
         let reach = LID_GAP * side(o.e1).min(side(o.e3));
         let corners = o.outline();
-        !q.tri
-            && j != i
+        j != i
             && dot(q.n, o.n) > 1.0 - 1e-9
             && gap > 0.0
             && gap < reach
             && corners.iter().any(|&c| {
                 let (s, t) = q.params(c);
-                (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t)
+                (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t) && (!q.tri || s + t <= 1.0)
             })
     })
 }
@@ -462,6 +570,71 @@ fn covered_at(quads: &[Parallelogram], bvh: &Bvh, i: usize, s: f64, t: f64) -> b
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// On a triangle piece, the masked Gram matrix of the open piece is the identity (the
+    /// basis is orthonormal), and G_00 is the exposed share of its area: the corner cell of a
+    /// 2 × 2 grid covered leaves half the root triangle (its two halves are half of it);
+    /// a cell cut along a column of sub-cells leaves the share those sub-cells make.
+    #[test]
+    fn masked_gram_matrices_of_triangle_pieces() {
+        let root = Piece::whole(0);
+        for k in 1..=3 {
+            let n = crate::math::triangle::dimension(k - 1);
+            let open = Mask {
+                res: 2,
+                cells: vec![Cell::Open; 4],
+            };
+            assert_eq!(open.exposure_triangle(&root, k), Exposure::Open);
+            let mut cells = vec![Cell::Open; 4];
+            cells[0] = Cell::Covered;
+            let corner = Mask { res: 2, cells };
+            let Exposure::Partial(p) = corner.exposure_triangle(&root, k) else {
+                panic!("partly covered")
+            };
+            assert!((p.fraction() - 0.5).abs() < 1e-12, "{}", p.fraction());
+            // the open part is the three other quarter triangles: G restricted to them is
+            // the sum of the children's H Hᵀ blocks, which the two-scale relation gives
+            let basis = TriangleBasis::of_order(k - 1);
+            let kk = k * k;
+            for a in 0..n {
+                let mut e = vec![[0.0; 1]; n];
+                e[a][0] = 1.0;
+                let mut want = vec![[0.0; 1]; n];
+                for child in [1, 2] {
+                    let mut c = vec![[0.0; 1]; n];
+                    basis.push(&e, child, &mut c);
+                    basis.pull(&c, child, &mut want);
+                }
+                for c in 0..n {
+                    let got = p.gram[a * kk + c];
+                    // the centre child (3) lies in the covered corner cell too
+                    assert!(
+                        (got - want[c][0]).abs() < 1e-12,
+                        "k={k} G[{a}][{c}] = {got}"
+                    );
+                }
+            }
+            // a column of sub-cells of the corner cell open: its share of the root
+            let mut bits = [u64::MAX; SUB * SUB / 64];
+            for j in 0..SUB {
+                let b = j * SUB;
+                bits[b / 64] &= !(1 << (b % 64));
+            }
+            let mut cells = vec![Cell::Covered; 4];
+            cells[0] = Cell::Cut(Box::new(bits));
+            let cut = Mask { res: 2, cells };
+            let Exposure::Partial(p) = cut.exposure_triangle(&root, k) else {
+                panic!("partly covered")
+            };
+            // SUB sub-cells of (1/2SUB)² each, over the root's ½
+            let share = SUB as f64 * (0.5 / SUB as f64).powi(2) / 0.5;
+            assert!(
+                (p.fraction() - share).abs() < 1e-12,
+                "{} {share}",
+                p.fraction()
+            );
+        }
+    }
 
     /// A floor [0, 8]² with an axis-aligned box (five faces, no bottom, 1 high) on it.
     fn floor_with_box(lo: [f64; 2], hi: [f64; 2]) -> Vec<Parallelogram> {

@@ -411,24 +411,16 @@ impl<'g> Hierarchy<'g> {
         let mut b = [[0.0; 3]; MAX_KK];
         let mut child_down = [[0.0; 3]; MAX_KK];
         let mut masked = [[0.0; 3]; MAX_KK];
-        if self.geo.quads[el.piece.surface].tri {
-            // a triangle's children by its own two-scale relation (never covered)
-            let basis = TriangleBasis::of_order(self.k - 1);
-            for i in 0..4u32 {
-                basis.push(&total[..kk], i as usize, &mut child_down[..kk]);
-                self.push_pull(first + i, &child_down[..kk], change, norm);
-                basis.pull(
-                    &self.elements[(first + i) as usize].b,
-                    i as usize,
-                    &mut b[..kk],
-                );
-            }
-            self.elements[e as usize].b.copy_from_slice(&b[..kk]);
-            return;
-        }
+        let tri = self.geo.quads[el.piece.surface].tri;
+        let basis = TriangleBasis::of_order(self.k - 1);
         for i in 0..4u32 {
             let (dt, ds) = ((i / 2) as usize, (i % 2) as usize);
-            push(self.filters, &total[..kk], dt, ds, &mut child_down[..kk]);
+            // a triangle's children by its own two-scale relation
+            if tri {
+                basis.push(&total[..kk], i as usize, &mut child_down[..kk]);
+            } else {
+                push(self.filters, &total[..kk], dt, ds, &mut child_down[..kk]);
+            }
             self.push_pull(first + i, &child_down[..kk], change, norm);
             let child = &self.elements[(first + i) as usize];
             // a partly covered parent projects its children's B on its exposed part: the
@@ -444,7 +436,11 @@ impl<'g> Hierarchy<'g> {
                 }
                 _ => &child.b[..],
             };
-            pull(self.filters, moments, dt, ds, &mut b[..kk]);
+            if tri {
+                basis.pull(moments, i as usize, &mut b[..kk]);
+            } else {
+                pull(self.filters, moments, dt, ds, &mut b[..kk]);
+            }
         }
         if let Exposure::Partial(p) = &self.elements[e as usize].exposure {
             Partial::apply(&p.inverse, &b[..kk], &mut masked[..kk]);

@@ -273,8 +273,12 @@ impl Hierarchy<'_> {
                 &mut e,
             );
             let at = |x: f64| (x * f64::from(1u32 << (parent.level + 1))).round() as u32;
+            let exposure = match (&parent.exposure, &self.masks[piece.surface]) {
+                (Exposure::Partial(_), Some(m)) => m.exposure_triangle(&piece, self.k),
+                (e, _) => e.clone(),
+            };
             self.elements.push(Element {
-                exposure: Exposure::Open,
+                exposure,
                 peak: peak_emission(quad, piece),
                 piece,
                 level: parent.level + 1,
