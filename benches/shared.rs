@@ -1,5 +1,6 @@
 //! More than one process: the cost of keeping jobs in PostgreSQL instead of the embedded store
-//! for a job of about 50 ms (`POST /api/v1/render`, one at a time, median), and small-job
+//! for a job of about 50 ms (`POST /api/v1/render`, one at a time, the two stores in turns,
+//! median of 100 each), and small-job
 //! throughput with one, two and three `wavrad serve` processes on one database (jobs posted
 //! round-robin with `POST /api/v1/jobs`, timed until all have succeeded). Needs a PostgreSQL
 //! cluster: `WAVRAD_BENCH_DATABASE_URL` or `WAVRAD_TEST_DATABASE_URL` (`eval "$(.ci/postgres)"`);
@@ -82,27 +83,49 @@ async fn wait_ready(http: &reqwest::Client, s: &Server) {
     panic!("{} not ready", s.base);
 }
 
-/// Median seconds of `n` synchronous renders of distinct ~50 ms documents.
-async fn render_median(http: &reqwest::Client, s: &Server, tag: &str, n: usize) -> f64 {
-    let mut times = vec![];
+/// Seconds of one synchronous render of a distinct ~50 ms document.
+async fn render_once(http: &reqwest::Client, s: &Server, name: &str) -> f64 {
+    let body = doc(name, 3, 64);
+    let t = Instant::now();
+    let res = http
+        .post(format!("{}/api/v1/render", s.base))
+        .header("content-type", "application/json")
+        .body(body)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), 200);
+    res.bytes().await.unwrap();
+    t.elapsed().as_secs_f64()
+}
+
+/// Median seconds of `n` renders on each of two servers, taken in turns (a, b, b, a, a, b, …)
+/// so that the machine's drift over the run (its load, its disk's flushes) falls on both
+/// alike; the first two of each warm up.
+async fn render_medians(
+    http: &reqwest::Client,
+    a: &Server,
+    b: &Server,
+    tag: &str,
+    n: usize,
+) -> (f64, f64) {
+    let (mut ta, mut tb) = (vec![], vec![]);
     for i in 0..n + 2 {
-        let body = doc(&format!("{tag} {i}"), 3, 64);
-        let t = Instant::now();
-        let res = http
-            .post(format!("{}/api/v1/render", s.base))
-            .header("content-type", "application/json")
-            .body(body)
-            .send()
-            .await
-            .unwrap();
-        assert_eq!(res.status(), 200);
-        res.bytes().await.unwrap();
-        if i >= 2 {
-            times.push(t.elapsed().as_secs_f64()); // the first two warm up
+        let first_a = i % 2 == 0;
+        for turn in 0..2 {
+            let on_a = (turn == 0) == first_a;
+            let (s, times) = if on_a { (a, &mut ta) } else { (b, &mut tb) };
+            let t = render_once(http, s, &format!("{tag} {} {i}", u8::from(on_a))).await;
+            if i >= 2 {
+                times.push(t);
+            }
         }
     }
-    times.sort_by(f64::total_cmp);
-    times[times.len() / 2]
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    (median(ta), median(tb))
 }
 
 /// Jobs per second: `n` small jobs posted round-robin, until all have succeeded.
@@ -153,7 +176,7 @@ fn main() {
     };
     // `cargo bench` passes --bench; `cargo test --benches` runs it once as a check
     let quick = !std::env::args().any(|a| a == "--bench");
-    let (renders, jobs) = if quick { (3, 12) } else { (30, 150) };
+    let (renders, jobs) = if quick { (3, 12) } else { (100, 150) };
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
         let http = reqwest::Client::new();
@@ -161,13 +184,12 @@ fn main() {
         let run = std::process::id();
         // overhead on a ~50 ms job, one worker each
         let embedded = start(None, &dir.path().join("e"), 1);
-        wait_ready(&http, &embedded).await;
-        let e = render_median(&http, &embedded, &format!("e{run}"), renders).await;
-        drop(embedded);
         let url = fresh_database(&cluster, &format!("wavrad_bench_{run}_o")).await;
         let pg = start(Some(&url), &dir.path().join("p"), 1);
+        wait_ready(&http, &embedded).await;
         wait_ready(&http, &pg).await;
-        let p = render_median(&http, &pg, &format!("p{run}"), renders).await;
+        let (e, p) = render_medians(&http, &embedded, &pg, &format!("o{run}"), renders).await;
+        drop(embedded);
         drop(pg);
         println!(
             "50 ms job, POST /api/v1/render, median of {renders}: embedded {:.1} ms, PostgreSQL {:.1} ms ({:+.1} %)",
