@@ -157,35 +157,21 @@ fn surfaces_of_patches(
             for (c, a) in cells.iter().zip(&area[patches.clone()]) {
                 (0..3).for_each(|ch| mean[ch] += c[ch] * a / total);
             }
-            // B at the corners (0,0), (1,0), (0,1) of each triangle, summed per position
-            let corners = |i: usize| {
-                let f = &fields[i];
-                [f.eval(0.0, 0.0), f.eval(1.0, 0.0), f.eval(0.0, 1.0)]
-            };
             let at_positions = match (&s.shape, vertices) {
-                (Shape3::Triangle, true) => Some(corners(patches.start).to_vec()),
+                (Shape3::Triangle, true) => {
+                    Some(vertex_values(3, &[[0, 1, 2]], &fields[patches.clone()]))
+                }
                 (
                     Shape3::Mesh {
                         positions,
                         triangles,
                     },
                     true,
-                ) => {
-                    let mut sum = vec![[0.0; 3]; positions.len()];
-                    let mut count = vec![0usize; positions.len()];
-                    for (t, i) in triangles.iter().zip(patches.clone()) {
-                        for (&p, v) in t.iter().zip(corners(i)) {
-                            (0..3).for_each(|ch| sum[p][ch] += v[ch]);
-                            count[p] += 1;
-                        }
-                    }
-                    Some(
-                        sum.iter()
-                            .zip(&count)
-                            .map(|(v, &n)| v.map(|x| x / n.max(1) as f64))
-                            .collect(),
-                    )
-                }
+                ) => Some(vertex_values(
+                    positions.len(),
+                    triangles,
+                    &fields[patches.clone()],
+                )),
                 _ => None,
             };
             match s.shape {
@@ -203,6 +189,25 @@ fn surfaces_of_patches(
                 },
             }
         })
+        .collect()
+}
+
+/// B at each of `positions` points of a mesh whose triangle `i` has the field `fields[i]`: the
+/// value of each triangle's polynomial at its corners ((0, 0), (1, 0), (0, 1) of its (s, t)),
+/// averaged over the triangles that meet at the position (scene.md's `vertices`).
+pub fn vertex_values(positions: usize, triangles: &[[usize; 3]], fields: &[Field]) -> Vec<Rgb> {
+    let mut sum = vec![[0.0; 3]; positions];
+    let mut count = vec![0usize; positions];
+    for (t, f) in triangles.iter().zip(fields) {
+        let corners = [f.eval(0.0, 0.0), f.eval(1.0, 0.0), f.eval(0.0, 1.0)];
+        for (&p, v) in t.iter().zip(corners) {
+            (0..3).for_each(|c| sum[p][c] += v[c]);
+            count[p] += 1;
+        }
+    }
+    sum.iter()
+        .zip(&count)
+        .map(|(v, &n)| v.map(|x| x / n.max(1) as f64))
         .collect()
 }
 

@@ -6,7 +6,7 @@
 
 use crate::math::basis::legendre;
 use crate::math::quadrature::Rule;
-use crate::math::triangle::TriangleBasis;
+use crate::math::triangle::{cell_halves, local_in_half, TriangleBasis};
 
 /// One leaf: B(s,t) = Σ c[q][p] φ_p(ŝ) φ_q(t̂) with ŝ, t̂ the local coordinates in the leaf.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,6 +34,8 @@ pub struct Field {
     /// B over the triangle s + t ≤ 1 (a triangle patch), whose leaves are the triangles of
     /// the midpoint split.
     pub tri: bool,
+    /// The basis of a triangle field's leaves.
+    basis: Option<&'static TriangleBasis>,
     /// For each finest cell (`[t][s]`), the leaf that holds it; on a triangle field, for each
     /// half of each finest cell (`[t][s][upper]`).
     lookup: Vec<u32>,
@@ -68,6 +70,7 @@ impl Field {
             res,
             leaves,
             tri: false,
+            basis: None,
             lookup,
         }
     }
@@ -80,24 +83,8 @@ impl Field {
             let s0 = (l.s[0] * res as f64).round() as usize;
             let t0 = (l.t[0] * res as f64).round() as usize;
             let n = ((l.s[1] - l.s[0]) * res as f64).round() as usize;
-            for j in 0..n {
-                for k in 0..n {
-                    // (k, j) from the leaf's right angle, in finest cells
-                    let (a, b) = if l.upper {
-                        (n - 1 - k, n - 1 - j)
-                    } else {
-                        (k, j)
-                    };
-                    let (cs, ct) = (s0 + k, t0 + j);
-                    let at = 2 * (ct * res + cs);
-                    if a + b + 1 < n {
-                        lookup[at] = i as u32;
-                        lookup[at + 1] = i as u32;
-                    } else if a + b + 1 == n {
-                        // on the leaf's diagonal: the half on its side
-                        lookup[at + usize::from(l.upper)] = i as u32;
-                    }
-                }
+            for (k, j, upper) in cell_halves(n, l.upper) {
+                lookup[2 * ((t0 + j) * res + s0 + k) + usize::from(upper)] = i as u32;
             }
         }
         Field {
@@ -106,6 +93,7 @@ impl Field {
             res,
             leaves,
             tri: true,
+            basis: Some(TriangleBasis::of_order(order)),
             lookup,
         }
     }
@@ -178,16 +166,11 @@ impl Field {
     /// The expansion of `leaf` at (s, t), also outside the leaf (a polynomial).
     pub fn eval_leaf(&self, leaf: &Leaf, s: f64, t: f64) -> [f64; 3] {
         let k = self.order + 1;
-        if self.tri {
-            let h = leaf.s[1] - leaf.s[0];
-            let (u, v) = if leaf.upper {
-                ((leaf.s[1] - s) / h, (leaf.t[1] - t) / h)
-            } else {
-                ((s - leaf.s[0]) / h, (t - leaf.t[0]) / h)
-            };
+        if let Some(basis) = self.basis {
+            let (u, v) = local_in_half(leaf.s, leaf.t, leaf.upper, s, t);
             let n = crate::math::triangle::dimension(self.order);
             let mut phi = [0.0; 64];
-            TriangleBasis::of_order(self.order).eval(u, v, &mut phi[..n]);
+            basis.eval(u, v, &mut phi[..n]);
             let mut out = [0.0; 3];
             for (c, p) in leaf.coeffs[..n].iter().zip(&phi[..n]) {
                 (0..3).for_each(|ch| out[ch] += c[ch] * p);

@@ -91,6 +91,47 @@ use crate::math::quadrature::{Rule, MAX_CACHED};
 use smallvec::{smallvec, SmallVec};
 use std::sync::{Mutex, OnceLock};
 
+/// The local coordinates (ŝ, t̂) of the point (x, y) in the triangle that is the lower-left
+/// half of the square `[s0, s1] × [t0, t1]` (the right angle at (s0, t0)), or with `upper` its
+/// upper-right half (the right angle at (s1, t1), turned by half a turn): the triangles of the
+/// four-way split of a triangle whose (s, t) square is the unit one.
+#[inline(always)]
+pub fn local_in_half(s: [f64; 2], t: [f64; 2], upper: bool, x: f64, y: f64) -> (f64, f64) {
+    let h = s[1] - s[0];
+    if upper {
+        ((s[1] - x) / h, (t[1] - y) / h)
+    } else {
+        ((x - s[0]) / h, (y - t[0]) / h)
+    }
+}
+
+/// The halves of the cells of an `n × n` grid over a square that its lower-left half (or with
+/// `upper` its upper-right half) is made of: `(i, j, upper half of the cell)`, i along s. A cell
+/// wholly inside gives both halves; one on the diagonal, the half on the triangle's side.
+pub fn cell_halves(n: usize, upper: bool) -> impl Iterator<Item = (usize, usize, bool)> {
+    (0..n * n).flat_map(move |c| {
+        let (i, j) = (c % n, c / n);
+        // (a, b): the cell counted from the triangle's right angle
+        let (a, b) = if upper {
+            (n - 1 - i, n - 1 - j)
+        } else {
+            (i, j)
+        };
+        let halves: &[bool] = if a + b + 1 < n {
+            &[false, true]
+        } else if a + b + 1 == n {
+            if upper {
+                &[true]
+            } else {
+                &[false]
+            }
+        } else {
+            &[]
+        };
+        halves.iter().map(move |&h| (i, j, h))
+    })
+}
+
 /// The reference triangle's vertices (s, t), in order.
 pub const VERTICES: [[f64; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
 

@@ -199,22 +199,12 @@ fn triangles(
     fields: &[Field],
     white: f64,
 ) -> LitMesh {
-    let mut sum = vec![[0.0; 3]; positions.len()];
-    let mut count = vec![0usize; positions.len()];
-    for (t, f) in triangles.iter().zip(fields) {
-        for (&p, (s, u)) in t.iter().zip([(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)]) {
-            let b = f.eval(s, u);
-            (0..3).for_each(|c| sum[p][c] += b[c]);
-            count[p] += 1;
-        }
-    }
     LitMesh {
         name: name.to_string(),
         positions: positions.iter().map(|p| p.map(|x| x as f32)).collect(),
-        colours: sum
-            .iter()
-            .zip(&count)
-            .map(|(b, &n)| colour(b.map(|x| x / n.max(1) as f64), white))
+        colours: crate::job::vertex_values(positions.len(), triangles, fields)
+            .into_iter()
+            .map(|b| colour(b, white))
             .collect(),
         triangles: triangles.iter().map(|t| t.map(|i| i as u32)).collect(),
     }

@@ -342,22 +342,9 @@ impl Mask {
         let (s0, t0) = (idx(piece.s[0]), idx(piece.t[0]));
         let n = idx(piece.s[1]) - s0;
         // the halves of finest cells in the piece: (cell s, cell t, upper half)
-        let mut halves = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                let (a, b) = if piece.upper {
-                    (n - 1 - i, n - 1 - j)
-                } else {
-                    (i, j)
-                };
-                if a + b + 1 < n {
-                    halves.push((s0 + i, t0 + j, false));
-                    halves.push((s0 + i, t0 + j, true));
-                } else if a + b + 1 == n {
-                    halves.push((s0 + i, t0 + j, piece.upper));
-                }
-            }
-        }
+        let halves: Vec<(usize, usize, bool)> = crate::math::triangle::cell_halves(n, piece.upper)
+            .map(|(i, j, upper)| (s0 + i, t0 + j, upper))
+            .collect();
         let state = |h: &(usize, usize, bool)| &self.cells[h.1 * self.res + h.0];
         if halves.iter().all(|h| *state(h) == Cell::Open) {
             return Exposure::Open;

@@ -272,16 +272,6 @@ impl Piece {
         }
     }
 
-    /// A parallelogram's piece `[s0,s1] × [t0,t1]`.
-    pub fn rect(surface: usize, s: [f64; 2], t: [f64; 2]) -> Piece {
-        Piece {
-            surface,
-            s,
-            t,
-            upper: false,
-        }
-    }
-
     /// Its corners, counter-clockwise; a triangle's three with the last repeated.
     pub fn corners(&self, quads: &[Parallelogram]) -> [V3; 4] {
         let q = &quads[self.surface];
@@ -307,12 +297,7 @@ impl Piece {
     /// reference triangle's (ŝ, t̂).
     #[inline(always)]
     pub fn local(&self, s: f64, t: f64) -> (f64, f64) {
-        let h = self.s[1] - self.s[0];
-        if self.upper {
-            ((self.s[1] - s) / h, (self.t[1] - t) / h)
-        } else {
-            ((s - self.s[0]) / h, (t - self.t[0]) / h)
-        }
+        crate::math::triangle::local_in_half(self.s, self.t, self.upper, s, t)
     }
 
     /// (s, t) of the local coordinates (ŝ, t̂) of a triangle piece.

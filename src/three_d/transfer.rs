@@ -110,6 +110,7 @@ pub fn block(
         acc,
         scale,
         evaluations: std::cell::Cell::new(0),
+        tri_basis: (qa.tri || qb.tri).then(|| TriangleBasis::of_order(k - 1)),
         samples: std::cell::RefCell::new(Vec::new()),
     };
     ctx.pair(Rect::of(qa, a), Rect::of(qb, b), 0, out);
@@ -240,6 +241,8 @@ struct Ctx<'a> {
     acc: Accuracy,
     scale: f64,
     evaluations: std::cell::Cell<u64>,
+    /// The basis of a triangle piece, when there is one.
+    tri_basis: Option<&'static TriangleBasis>,
     /// Rule points on pieces of `b` with the basis there, by (piece, q): the far rule and the
     /// inner integral of every outer point use the same few.
     samples: std::cell::RefCell<Vec<Samples>>,
@@ -295,9 +298,8 @@ impl Ctx<'_> {
         let k = self.k;
         let p = if of_a { &self.a } else { &self.b };
         let tri = if of_a { self.qa.tri } else { self.qb.tri };
-        if tri {
+        if let Some(basis) = self.tri_basis.filter(|_| tri) {
             // the orthonormal polynomials of total degree < k, the rest of the k² slots zero
-            let basis = TriangleBasis::of_order(k - 1);
             let n = crate::math::triangle::dimension(k - 1);
             let (u, v) = p.local(s, t);
             basis.eval(u, v, &mut out[..n]);

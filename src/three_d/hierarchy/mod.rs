@@ -53,6 +53,8 @@ pub struct Hierarchy<'g> {
     pub geo: &'g Geometry,
     pub quads: &'g [Quad],
     pub filters: &'static Filters,
+    /// The two-scale relation of triangle patches' elements.
+    pub tri_basis: &'static TriangleBasis,
     pub k: usize,
     /// The finest level of each surface's quadtree, by [`sizing`].
     pub levels: Vec<u32>,
@@ -137,6 +139,7 @@ impl<'g> Hierarchy<'g> {
             geo,
             quads,
             filters: Filters::of_order(order),
+            tri_basis: TriangleBasis::of_order(order),
             k,
             receiver_first: refine::receiver_first(order),
             levels,
@@ -412,7 +415,7 @@ impl<'g> Hierarchy<'g> {
         let mut child_down = [[0.0; 3]; MAX_KK];
         let mut masked = [[0.0; 3]; MAX_KK];
         let tri = self.geo.quads[el.piece.surface].tri;
-        let basis = TriangleBasis::of_order(self.k - 1);
+        let basis = self.tri_basis;
         for i in 0..4u32 {
             let (dt, ds) = ((i / 2) as usize, (i % 2) as usize);
             // a triangle's children by its own two-scale relation

@@ -29,7 +29,6 @@
 
 use super::tree::{push, Element, NONE};
 use super::Hierarchy;
-use crate::math::triangle::TriangleBasis;
 use crate::progress::{Cancelled, Progress};
 use crate::three_d::congruence::Congruence;
 use crate::three_d::cover::Exposure;
@@ -258,7 +257,7 @@ impl Hierarchy<'_> {
     /// scale relation.
     fn split_triangle(&mut self, id: u32, parent: &Element) {
         let kk = self.k * self.k;
-        let basis = TriangleBasis::of_order(self.k - 1);
+        let basis = self.tri_basis;
         let quad = &self.quads[parent.piece.surface];
         for c in 0..4 {
             let piece = parent.piece.tri_child(c);
