@@ -62,6 +62,8 @@ fn serve(config: Config) -> ExitCode {
         eprintln!("wavrad: {e}");
         return ExitCode::from(2);
     }
+    // before the runtime's and the solver's threads start allocating
+    wavrad::server::queue::tune_malloc();
     let runtime = tokio::runtime::Runtime::new().expect("a tokio runtime");
     let result = runtime.block_on(async {
         let listener = tokio::net::TcpListener::bind(config.addr).await?;

@@ -193,13 +193,21 @@ const LOST: u8 = 3;
 /// One job known to the server.
 pub struct Entry {
     pub id: String,
-    document: Value,
-    /// The validated document (`None` for jobs that had finished before this start).
-    job: Option<Job>,
+    /// What the job needs until it has run (`None` for jobs that had finished before this
+    /// start). Taken by [`Queue::run`]: a finished job keeps only its status in memory; its
+    /// document is in the store.
+    pending: Mutex<Option<Pending>>,
     status: watch::Sender<JobStatus>,
     stop: AtomicU8,
     /// With a shared database: when the lease was last renewed (ms since the epoch).
     renewed_ms: AtomicU64,
+}
+
+/// A job not yet run: its document (written to the store with the result) and the validated
+/// job. The Cornell box's take about 35 kB of memory, which every finished job used to keep.
+struct Pending {
+    document: Value,
+    job: Job,
 }
 
 impl Entry {
@@ -430,15 +438,15 @@ impl Queue {
                     status: status.clone(),
                 })?;
             }
+            let queued = job.is_some();
             let entry = Arc::new(Entry {
                 id: status.id.clone(),
-                document,
-                job,
+                pending: Mutex::new(job.map(|job| Pending { document, job })),
                 stop: AtomicU8::new(GO_ON),
                 renewed_ms: AtomicU64::new(0),
                 status: watch::channel(status).0,
             });
-            if entry.job.is_some() {
+            if queued {
                 requeue.push(entry.clone());
             }
             entries.insert(entry.id.clone(), entry);
@@ -499,8 +507,7 @@ impl Queue {
         }
         let entry = Arc::new(Entry {
             id: id.clone(),
-            document,
-            job: Some(job),
+            pending: Mutex::new(Some(Pending { document, job })),
             stop: AtomicU8::new(GO_ON),
             renewed_ms: AtomicU64::new(0),
             status: watch::channel(status).0,
@@ -672,12 +679,13 @@ impl Queue {
     /// Runs one job on the current (pool) thread.
     fn run(&self, entry: Arc<Entry>) {
         let inner = &self.inner;
-        let Some(job) = entry.job.as_ref() else {
+        let Some(Pending { document, job }) = entry.pending.lock().expect("pending lock").take()
+        else {
             return;
         };
         if entry.stop.load(Ordering::SeqCst) != GO_ON || inner.draining.load(Ordering::SeqCst) {
             if inner.shared.is_some() {
-                self.finish_shared(&entry, SHUTDOWN, entry.status(), &[]);
+                self.finish_shared(&entry, &document, SHUTDOWN, entry.status(), &[]);
             }
             return;
         }
@@ -702,9 +710,9 @@ impl Queue {
             timed_out: AtomicBool::new(false),
         };
         let run = catch_unwind(AssertUnwindSafe(|| {
-            let outcome = (inner.solve)(job, &watch)?;
+            let outcome = (inner.solve)(&job, &watch)?;
             watch.report(Phase::Render, 0.0);
-            let images = crate::render::render_all(job, &outcome);
+            let images = crate::render::render_all(&job, &outcome);
             let json = serde_json::to_vec_pretty(&outcome.result).expect("a result serialises");
             Ok::<_, JobError>((json, images))
         }));
@@ -788,25 +796,25 @@ impl Queue {
                 .iter()
                 .map(|(n, b)| (n.clone(), b.as_slice()))
                 .collect();
-            self.finish_shared(&entry, stop, status, &files);
+            self.finish_shared(&entry, &document, stop, status, &files);
         } else if stop != CANCEL {
             let files: Vec<(String, &[u8])> = files
                 .iter()
                 .map(|(n, b)| (n.clone(), b.as_slice()))
                 .collect();
-            self.write(&entry, status.clone(), &files);
+            self.write(&entry, &document, status.clone(), &files);
             entry.status.send_replace(status);
             self.evict();
         }
-        drop(files);
+        drop((files, document, job));
         release_memory();
         inner.running.fetch_sub(1, Ordering::SeqCst);
         inner.idle.notify_waiters();
     }
 
-    fn write(&self, entry: &Entry, status: JobStatus, files: &[(String, &[u8])]) {
+    fn write(&self, entry: &Entry, document: &Value, status: JobStatus, files: &[(String, &[u8])]) {
         let record = Record {
-            document: entry.document.clone(),
+            document: document.clone(),
             status,
         };
         if let Err(e) = self.inner.store.put_finished(&record, files) {
@@ -900,8 +908,10 @@ impl Queue {
 /// eight arenas per core) and gives pages back to the system only from the top of an arena,
 /// so the free memory of every finished solve stayed resident, scattered over the arenas: the
 /// resident memory grew with the jobs (see "Memory and disk" in `benches/README.md`).
-/// `malloc_trim(0)` returns the whole free pages of every arena (glibc ≥ 2.8); it costs
-/// about a millisecond per solve. Other allocators return memory on their own.
+/// `malloc_trim(0)` returns the whole free pages inside every arena (glibc ≥ 2.8); it costs
+/// about a millisecond per solve. The free top of a thread's arena it leaves alone: that one
+/// goes back on `free` once it is larger than the trim threshold ([`tune_malloc`]). Other
+/// allocators return memory on their own.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 pub fn release_memory() {
     // SAFETY: malloc_trim has no preconditions; it only releases free memory.
@@ -913,6 +923,32 @@ pub fn release_memory() {
 /// Gives the memory a finished solve freed back to the system (nothing to do here).
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
 pub fn release_memory() {}
+
+/// Fixes glibc's malloc thresholds, once at start (`wavrad serve`).
+///
+/// Left alone, glibc raises its mmap threshold to the size of each large mmapped block that
+/// is freed (up to 32 MiB) and its trim threshold to twice that. A solve of the Cornell box
+/// frees mmapped blocks of many MB (up to 25 MB at once), so after the first job the trim
+/// threshold was tens of MB: the free top of each thread's arena (which `malloc_trim` does
+/// not touch outside the main arena) stayed resident up to that size, up to 30 MB per arena;
+/// glibc's own statistics showed 50–170 MB taken from the system against 2–8 MB in use, and
+/// the resident memory was 60–90 MB after 10 to 100 Cornell boxes. Setting the
+/// thresholds turns the adjustment off: blocks of 4 MiB and more are mmapped and unmapped on
+/// `free`, and an arena's free top beyond 128 KiB (glibc's default) goes back to the system.
+/// The Cornell box solves as fast as before (about 4 s a job in the soak either way). The
+/// measurements are in "Memory and disk", `benches/README.md`.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+pub fn tune_malloc() {
+    // SAFETY: mallopt only sets parameters of the allocator; any values are allowed.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 4 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 128 << 10);
+    }
+}
+
+/// Fixes glibc's malloc thresholds (nothing to do here).
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+pub fn tune_malloc() {}
 
 /// The status of a job just accepted.
 fn new_status(id: &str, job: &Job) -> JobStatus {

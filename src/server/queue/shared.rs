@@ -145,8 +145,7 @@ impl Queue {
         let final_ = record.status.state.is_final();
         let entry = Arc::new(Entry {
             id: record.status.id.clone(),
-            document: record.document,
-            job: None,
+            pending: Mutex::new(None),
             stop: AtomicU8::new(GO_ON),
             renewed_ms: AtomicU64::new(0),
             status: watch::channel(record.status).0,
@@ -163,6 +162,7 @@ impl Queue {
     pub(super) fn finish_shared(
         &self,
         entry: &Entry,
+        document: &Value,
         stop: u8,
         status: JobStatus,
         files: &[(String, &[u8])],
@@ -180,7 +180,7 @@ impl Queue {
             }
             _ => {
                 let record = Record {
-                    document: entry.document.clone(),
+                    document: document.clone(),
                     status: status.clone(),
                 };
                 let deadline = Instant::now() + shared.lease;
@@ -283,8 +283,10 @@ async fn dispatch(queue: Queue, shutdown: CancellationToken) {
         tracing::info!(%id, "job claimed");
         let entry = Arc::new(Entry {
             id: id.clone(),
-            document: record.document,
-            job: Some(job),
+            pending: Mutex::new(Some(Pending {
+                document: record.document,
+                job,
+            })),
             stop: AtomicU8::new(GO_ON),
             renewed_ms: AtomicU64::new(now_ms()),
             status: watch::channel(record.status).0,
