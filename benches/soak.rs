@@ -1,6 +1,6 @@
 //! A memory and disk soak: a started `wavrad serve` process is sent many jobs one after
-//! another, and its resident memory (VmRSS) and the size of its `data_dir` are sampled after
-//! each. Three phases:
+//! another, and its resident memory (VmRSS, and RssAnon, the heap's part of it) and the size
+//! of its `data_dir` are sampled after each. Three phases:
 //!
 //! 1. `WAVRAD_BENCH_CORNELL` (100) Cornell boxes (`scenes/cornell-box.json`, each with its own
 //!    scene name, so that none is answered from an earlier job), `POST /api/v1/render`;
@@ -36,15 +36,26 @@ impl Drop for Server {
     }
 }
 
-/// Resident memory of a process, MB.
-fn rss_mb(pid: u32) -> f64 {
+/// A field of `/proc/PID/status` in kB, as MB.
+fn status_mb(pid: u32, field: &str) -> f64 {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
     let kb: f64 = status
         .lines()
-        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .find_map(|l| l.strip_prefix(field))
         .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
-        .expect("VmRSS in /proc/PID/status");
+        .expect("the field in /proc/PID/status");
     kb / 1024.0
+}
+
+/// Resident memory of a process, MB.
+fn rss_mb(pid: u32) -> f64 {
+    status_mb(pid, "VmRSS:")
+}
+
+/// The anonymous part of the resident memory (the heap; the rest is the mapped binary and
+/// libraries: the store is read and written, not mapped), MB.
+fn anon_mb(pid: u32) -> f64 {
+    status_mb(pid, "RssAnon:")
 }
 
 /// Bytes of the files under `dir` (their lengths), MB.
@@ -87,6 +98,7 @@ fn flatland(i: usize) -> Value {
 struct Sample {
     jobs: usize,
     rss: f64,
+    anon: f64,
     disk: f64,
 }
 
@@ -138,6 +150,7 @@ fn main() {
     let mut samples = vec![Sample {
         jobs: 0,
         rss: rss_mb(pid),
+        anon: anon_mb(pid),
         disk: disk_mb(dir.path()),
     }];
     println!("started: RSS {:.1} MB", samples[0].rss);
@@ -145,13 +158,15 @@ fn main() {
         let s = Sample {
             jobs,
             rss: rss_mb(pid),
+            anon: anon_mb(pid),
             disk: disk_mb(dir.path()),
         };
         if [1, 10, 20, 50, 100].contains(&jobs) || jobs.is_multiple_of(100) {
             println!(
-                "{jobs:>5} jobs, {:>6.1} s: RSS {:.1} MB, data_dir {:.1} MB",
+                "{jobs:>5} jobs, {:>6.1} s: RSS {:.1} MB (anonymous {:.1}), data_dir {:.1} MB",
                 start.elapsed().as_secs_f64(),
                 s.rss,
+                s.anon,
                 s.disk
             );
         }
@@ -166,9 +181,10 @@ fn main() {
             // right after a job the last solve's memory may not be returned yet: settled
             std::thread::sleep(std::time::Duration::from_secs(2));
             println!(
-                "after {} Cornell boxes, settled: RSS {:.1} MB",
+                "after {} Cornell boxes, settled: RSS {:.1} MB (anonymous {:.1})",
                 i + 1,
-                rss_mb(pid)
+                rss_mb(pid),
+                anon_mb(pid)
             );
         }
     }
@@ -200,6 +216,7 @@ fn main() {
     samples.push(Sample {
         jobs: cornells,
         rss: after,
+        anon: anon_mb(pid),
         disk: disk_mb(dir.path()),
     });
     // 3. mixed sizes
@@ -213,7 +230,11 @@ fn main() {
         sample(i + 1, &mut samples);
     }
     std::thread::sleep(std::time::Duration::from_secs(2));
-    println!("settled: RSS {:.1} MB", rss_mb(pid));
+    println!(
+        "settled: RSS {:.1} MB (anonymous {:.1})",
+        rss_mb(pid),
+        anon_mb(pid)
+    );
     let last = samples.last().unwrap();
     println!(
         "after {total} jobs, {:.0} s: RSS {:.1} MB, data_dir {:.1} MB (max_store_bytes {max_store})",
@@ -271,7 +292,28 @@ fn plot(samples: &[Sample], cornells: usize, max_store: &str, out: &Path) {
                     samples.iter().map(|s| (s.jobs, value(s))),
                     color.stroke_width(2),
                 ))
-                .unwrap();
+                .unwrap()
+                .label(label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+            if label.starts_with("resident") {
+                let anon = RGBColor(44, 160, 44);
+                chart
+                    .draw_series(LineSeries::new(
+                        samples.iter().map(|s| (s.jobs, s.anon)),
+                        anon.stroke_width(2),
+                    ))
+                    .unwrap()
+                    .label("of which anonymous (heap) (MB)")
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], anon));
+                chart
+                    .configure_series_labels()
+                    .position(SeriesLabelPosition::LowerRight)
+                    .background_style(WHITE.mix(0.8))
+                    .border_style(BLACK.mix(0.3))
+                    .label_font(("sans-serif", 12))
+                    .draw()
+                    .unwrap();
+            }
             chart
                 .draw_series(std::iter::once(PathElement::new(
                     vec![(cornells, 0.0), (cornells, y_max)],
