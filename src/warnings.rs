@@ -150,11 +150,10 @@ fn three_d(d: &crate::scene::ThreeD) -> Vec<Warning> {
     let size = scale(quads.iter().flat_map(|q| q.corners.iter().flatten()));
     let eps = 1e-9 * size;
     let mut out = Vec::new();
-    for i in 0..quads.len() {
-        for j in i + 1..quads.len() {
-            if quads[i].triangle || quads[j].triangle {
-                continue;
-            }
+    // (the parallelograms among the patches only: a mesh has as many patches as triangles)
+    let parallelograms: Vec<usize> = (0..quads.len()).filter(|&i| !quads[i].triangle).collect();
+    for (a, &i) in parallelograms.iter().enumerate() {
+        for &j in &parallelograms[a + 1..] {
             if let Some(message) = quad_pair(&quads[i], &quads[j], eps) {
                 out.push(warning(owners[i], owners[j], message));
             }

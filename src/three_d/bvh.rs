@@ -16,7 +16,7 @@
 //! processor has them (`pulp` checks at run time), two SSE2 halves (`wide`) elsewhere.
 //! Measured in `benches/three_d.rs` (rays per second, `benches/README.md`).
 
-use crate::three_d::geometry::{sub, Parallelogram, V3};
+use crate::three_d::geometry::{dot, sub, Parallelogram, V3};
 use smallvec::SmallVec;
 
 /// Children per node and surfaces per leaf.
@@ -106,10 +106,27 @@ impl Bvh {
     pub fn occluders(quads: &[Parallelogram]) -> Bvh {
         let size = quads.iter().map(|q| q.diameter()).fold(0.0, f64::max);
         let tol = 1e-9 * size;
-        let bounding = |q: &Parallelogram| {
-            quads
+        let corners: Vec<V3> = quads.iter().flat_map(|q| q.outline()).collect();
+        // the corners farthest out in 26 directions first: they settle almost every surface
+        // that is not bounding at once, where the scan of every corner would make this
+        // quadratic in the surfaces
+        let mut extremes: Vec<V3> = Vec::new();
+        for d in 0..27 {
+            let dir = [
+                (d % 3) as f64 - 1.0,
+                (d / 3 % 3) as f64 - 1.0,
+                (d / 9) as f64 - 1.0,
+            ];
+            if let Some(&c) = corners
                 .iter()
-                .all(|o| o.outline().iter().all(|&c| q.side(c) >= -tol))
+                .min_by(|a, b| dot(**a, dir).total_cmp(&dot(**b, dir)))
+            {
+                extremes.push(c);
+            }
+        }
+        let bounding = |q: &Parallelogram| {
+            extremes.iter().all(|&c| q.side(c) >= -tol)
+                && corners.iter().all(|&c| q.side(c) >= -tol)
         };
         let members = (0..quads.len() as u32)
             .filter(|&i| !bounding(&quads[i as usize]))
@@ -193,14 +210,16 @@ impl Bvh {
         // packets there. That keeps each box of a room in its own node.
         let packets = |n: usize| n.div_ceil(W) as f64;
         let total = leaf.area();
-        let mut best: Option<(f64, Vec<u32>, usize)> = None;
+        // (cost, axis, split): the order is sorted again for the best axis only, since
+        // keeping a copy of it at every improvement would be quadratic in the surfaces
+        let mut best: Option<(f64, usize, usize)> = None;
+        let key = |axis: usize, i: &u32| {
+            let (l, h) = self.bounds(*i);
+            l[axis] + h[axis]
+        };
         for axis in 0..3 {
-            let key = |i: &u32| {
-                let (l, h) = self.bounds(*i);
-                l[axis] + h[axis]
-            };
             let mut slice = surfaces.clone();
-            slice.sort_by(|a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+            slice.sort_by(|a, b| key(axis, a).total_cmp(&key(axis, b)).then(a.cmp(b)));
             let areas = |it: &mut dyn Iterator<Item = &u32>| -> Vec<f64> {
                 let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
                 it.map(|&i| {
@@ -220,7 +239,7 @@ impl Bvh {
             for k in 1..count {
                 let cost = 1.0 + (left[k - 1] * packets(k) + right[k] * packets(count - k)) / total;
                 if best.as_ref().is_none_or(|b| cost < b.0) {
-                    best = Some((cost, slice.clone(), k));
+                    best = Some((cost, axis, k));
                 }
             }
         }
@@ -228,8 +247,8 @@ impl Bvh {
         if count <= PACKETS * W && best.as_ref().is_none_or(|b| packets(count) <= b.0) {
             return Binary { surfaces, ..leaf };
         }
-        let (_, slice, half) = best.expect("more than four surfaces");
-        surfaces = slice;
+        let (_, axis, half) = best.expect("more than four surfaces");
+        surfaces.sort_by(|a, b| key(axis, a).total_cmp(&key(axis, b)).then(a.cmp(b)));
         let right = surfaces.split_off(half);
         Binary {
             lo,
@@ -302,6 +321,38 @@ impl Bvh {
             self.nodes[me].child[k] = child;
         }
         me as u32
+    }
+
+    /// Whether `test` holds for some surface of the tree whose bounding box meets the box
+    /// [lo, hi]; the walk stops at the first.
+    pub fn any_in_box(&self, lo: V3, hi: V3, mut test: impl FnMut(usize) -> bool) -> bool {
+        let Some(root) = self.root else {
+            return false;
+        };
+        let mut stack: SmallVec<[u32; 48]> = SmallVec::new();
+        stack.push(root);
+        while let Some(r) = stack.pop() {
+            if r & LEAF != 0 {
+                for leaf in packets(self, r) {
+                    for &id in leaf.id.iter().filter(|&&id| id != u32::MAX) {
+                        let (l, h) = self.bounds(id);
+                        let meets = (0..3).all(|a| l[a] <= hi[a] && lo[a] <= h[a]);
+                        if meets && test(id as usize) {
+                            return true;
+                        }
+                    }
+                }
+                continue;
+            }
+            let node = &self.nodes[r as usize];
+            for k in 0..node.count as usize {
+                let meets = (0..3).all(|a| node.lo[a].0[k] <= hi[a] && lo[a] <= node.hi[a].0[k]);
+                if meets {
+                    stack.push(node.child[k]);
+                }
+            }
+        }
+        false
     }
 
     /// The nearest hit with distance in (t_min, t_max) along `o + t d`, skipping `skip`.

@@ -102,14 +102,13 @@ impl Mask {
     /// The masks of every surface of the scene that something stands on or lies flat against
     /// (`None` for the rest, and where nothing turned out covered), at `res` finest cells per
     /// side.
-    pub fn of_scene(
-        quads: &[Parallelogram],
-        bvh: &Bvh,
-        res: impl Fn(usize) -> usize,
-    ) -> Vec<Option<Mask>> {
+    ///
+    /// `bvh` holds the occluders ([`Bvh::occluders`]), `all` every surface ([`Bvh::new`]).
+    pub fn of_scene(bvh: &Bvh, all: &Bvh, res: impl Fn(usize) -> usize) -> Vec<Option<Mask>> {
+        let quads = all.quads();
         (0..quads.len())
             .map(|i| {
-                (!contacts(quads, i).is_empty() || lidded(quads, i))
+                (!contacts(all, i).is_empty() || lidded(all, i))
                     .then(|| Mask::probe(quads, bvh, i, res(i)))
                     .filter(|m| m.cells.iter().any(|c| *c != Cell::Open))
             })
@@ -447,15 +446,28 @@ fn pseudo_inverse(g: &[f64], n: usize) -> Vec<f64> {
 /// lies in i's plane with its midpoint inside i, away from i's own edges, as its two ends'
 /// (s, t). Across such a line the radiosity of i may jump: the surface standing there hides
 /// half of the hemisphere from the points next to it, and may shade one side of it.
-pub fn contacts(quads: &[Parallelogram], i: usize) -> Vec<[[f64; 2]; 2]> {
+///
+/// `all` holds every surface of the scene ([`Bvh::new`]); only those whose box meets i's are
+/// looked at (such an edge's midpoint is in i).
+pub fn contacts(all: &Bvh, i: usize) -> Vec<[[f64; 2]; 2]> {
+    let quads = all.quads();
     let q = &quads[i];
     let tol = 1e-9 * q.diameter();
     let inside = |x: f64| (1e-6..1.0 - 1e-6).contains(&x);
     let mut lines = Vec::new();
-    for (j, o) in quads.iter().enumerate() {
+    let (lo, hi) = padded_box(q, tol);
+    let mut near = Vec::new();
+    all.any_in_box(lo, hi, |j| {
+        near.push(j);
+        false
+    });
+    // in the order of the surfaces, as the scan of all of them had it
+    near.sort_unstable();
+    for j in near {
         if j == i {
             continue;
         }
+        let o = &quads[j];
         let c = o.outline();
         for e in 0..4 {
             let (a, b) = (c[e], c[(e + 1) % 4]);
@@ -480,9 +492,16 @@ pub fn contacts(quads: &[Parallelogram], i: usize) -> Vec<[[f64; 2]; 2]> {
 /// grazing angles, so it is dark up to the light's outline, where one polynomial over both
 /// sides would smear it (on the Cornell box without its blocks, the light 1 unit below the
 /// ceiling: the four cells above it 40 % bright, those around it 8 % dark).
-fn lidded(quads: &[Parallelogram], i: usize) -> bool {
+///
+/// `all` holds every surface ([`Bvh::new`]): a lid's corner over i is within [`LID_GAP`] of
+/// the largest surface's diameter of i's box.
+fn lidded(all: &Bvh, i: usize) -> bool {
+    let quads = all.quads();
     let q = &quads[i];
-    quads.iter().enumerate().any(|(j, o)| {
+    let largest = quads.iter().map(|q| q.diameter()).fold(0.0, f64::max);
+    let (lo, hi) = padded_box(q, LID_GAP * largest);
+    all.any_in_box(lo, hi, |j| {
+        let o = &quads[j];
         let side = |e: V3| dot(e, e).sqrt();
         let gap = q.side(o.p0);
         let reach = LID_GAP * side(o.e1).min(side(o.e3));
@@ -496,6 +515,18 @@ fn lidded(quads: &[Parallelogram], i: usize) -> bool {
                 (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t) && (!q.tri || s + t <= 1.0)
             })
     })
+}
+
+/// The bounding box of `q`, `pad` wider on every side.
+fn padded_box(q: &Parallelogram, pad: f64) -> (V3, V3) {
+    let (mut lo, mut hi) = (q.p0, q.p0);
+    for c in q.outline() {
+        for a in 0..3 {
+            lo[a] = lo[a].min(c[a] - pad);
+            hi[a] = hi[a].max(c[a] + pad);
+        }
+    }
+    (lo, hi)
 }
 
 /// How far outside a piece, in its surface's (s, t), a contact line still touches it.
@@ -652,7 +683,7 @@ mod tests {
             assert!(dot(q.n, out) > 0.0, "the box's faces point out");
         }
         let bvh = Bvh::occluders(&quads);
-        let masks = Mask::of_scene(&quads, &bvh, |_| 8);
+        let masks = Mask::of_scene(&bvh, &Bvh::new(&quads), |_| 8);
         assert!(masks[1..].iter().all(Option::is_none));
         let m = masks[0].as_ref().expect("the floor is stood on");
         assert!(m.covered(3.5 / 8.0, 3.0 / 8.0));
@@ -676,7 +707,7 @@ mod tests {
     fn the_lines_where_a_box_stands_are_its_feet() {
         // the foot [2, 5] × [3, 4.5] (x × z); the floor's s runs along z and t along x
         let quads = floor_with_box([2.0, 3.0], [5.0, 4.5]);
-        let lines = contacts(&quads, 0);
+        let lines = contacts(&Bvh::new(&quads), 0);
         assert_eq!(lines.len(), 4, "{lines:?}");
         // four different edges
         for (i, a) in lines.iter().enumerate() {
@@ -698,7 +729,7 @@ mod tests {
             }
         }
         // no face stands on another, nor on the top
-        assert!((1..quads.len()).all(|i| contacts(&quads, i).is_empty()));
+        assert!((1..quads.len()).all(|i| contacts(&Bvh::new(&quads), i).is_empty()));
         // a piece touches a line when the line crosses it, runs along its edge or ends in it
         let line = [[0.25, 0.25], [0.75, 0.5]];
         assert!(meets(&line, [0.0, 0.5], [0.0, 0.5]));
@@ -732,16 +763,16 @@ mod tests {
         };
         let quads = ceiling(0.01);
         assert!(quads[0].n[1] < 0.0 && quads[1].n[1] < 0.0, "both face down");
-        assert!(lidded(&quads, 0) && !lidded(&quads, 1));
+        assert!(lidded(&Bvh::new(&quads), 0) && !lidded(&Bvh::new(&quads), 1));
         let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(&quads, &bvh, |_| 8)
+        let m = Mask::of_scene(&bvh, &Bvh::new(&quads), |_| 8)
             .remove(0)
             .expect("covered");
         // the ceiling's s runs along x and t along z: the panel is [0.375, 0.625]²
         assert!(m.covered(0.5, 0.5) && m.covered(0.4, 0.6));
         assert!(!m.covered(0.3, 0.5) && !m.covered(0.5, 0.7) && !m.covered(0.1, 0.1));
         // a panel further than 2 % of its side, or facing the other way, is no lid
-        assert!(!lidded(&ceiling(0.05), 0));
+        assert!(!lidded(&Bvh::new(&ceiling(0.05)), 0));
         let mut flipped = ceiling(0.01);
         flipped[1] = Parallelogram::new(&[
             [3.0, 3.99, 3.0],
@@ -750,7 +781,7 @@ mod tests {
             [5.0, 3.99, 3.0],
         ]);
         assert!(flipped[1].n[1] > 0.0);
-        assert!(!lidded(&flipped, 0));
+        assert!(!lidded(&Bvh::new(&flipped), 0));
     }
 
     #[test]
@@ -758,7 +789,9 @@ mod tests {
         // the foot's edge z = 4.5 halves the finest cell z ∈ [4, 5], x ∈ [3, 4]
         let quads = floor_with_box([2.0, 3.0], [5.0, 4.5]);
         let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(&quads, &bvh, |_| 8).remove(0).expect("mask");
+        let m = Mask::of_scene(&bvh, &Bvh::new(&quads), |_| 8)
+            .remove(0)
+            .expect("mask");
         for k in 1..=4 {
             let Exposure::Partial(p) = m.exposure([0.5, 0.625], [0.375, 0.5], k) else {
                 panic!("cut")

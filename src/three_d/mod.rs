@@ -6,6 +6,7 @@
 //! hierarchical wavelet radiosity.
 
 pub mod bvh;
+pub mod cluster;
 pub mod congruence;
 pub mod cover;
 pub mod geometry;

@@ -24,32 +24,19 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 pub const VISIBILITY_GRID: usize = 4;
 
 /// The geometry of a 3D scene with the facts about pairs of surfaces that every method needs.
+/// Nothing here is a table over pairs of surfaces: a scene of 10⁵ triangles has 10¹⁰ pairs,
+/// of which the solver looks at a few per element.
 pub struct Geometry {
     pub quads: Vec<Parallelogram>,
+    /// The surfaces that may occlude a ray between two others ([`Bvh::occluders`]).
     pub bvh: Bvh,
-    /// Row-major `S × S`: the surfaces that may occlude the pair.
-    pub occluders: Vec<Vec<usize>>,
-    /// Row-major `S × S`: whether some point of each surface is in front of the other.
-    pub facing: Vec<bool>,
 }
 
 impl Geometry {
     pub fn new(quads: &[Quad]) -> Geometry {
         let quads: Vec<Parallelogram> = quads.iter().map(Parallelogram::of).collect();
-        let n = quads.len();
-        let mut facing = vec![false; n * n];
-        for i in 0..n {
-            for j in 0..n {
-                if i != j {
-                    facing[i * n + j] =
-                        in_front(&quads[i], &quads[j]) && in_front(&quads[j], &quads[i]);
-                }
-            }
-        }
         Geometry {
             bvh: Bvh::occluders(&quads),
-            occluders: visibility::surface_occluders(&quads),
-            facing,
             quads,
         }
     }
@@ -62,8 +49,10 @@ impl Geometry {
         self.quads.is_empty()
     }
 
+    /// Whether some point of each of surfaces `i` and `j` is in front of the other.
     pub fn facing(&self, i: usize, j: usize) -> bool {
-        self.facing[i * self.len() + j]
+        let (a, b) = (&self.quads[i], &self.quads[j]);
+        i != j && in_front(a, b) && in_front(b, a)
     }
 
     /// Surface pairs (i < j) whose closed parallelograms meet.
@@ -89,10 +78,12 @@ impl Geometry {
         self.visibility_over(a, None, b, seed, grid, rays)
     }
 
-    /// Whether no surface can come between pieces `a` and `b` (the hull test alone).
+    /// Whether no surface can come between pieces `a` and `b` (the hull test alone): no
+    /// surface of the occluders' tree in the box of the two pieces meets the hull of the
+    /// pieces by the quick test and that of their whole surfaces by the thorough one
+    /// ([`visibility::may_occlude`]).
     pub fn unoccluded(&self, a: Piece, b: Piece) -> bool {
-        let cand = &self.occluders[a.surface * self.len() + b.surface];
-        !visibility::any_occluder(&self.quads, a, b, cand)
+        !visibility::any_occluder(&self.quads, &self.bvh, a, b)
     }
 
     /// [`Geometry::visibility`] over the exposed part of `a` only, where `covered` marks a

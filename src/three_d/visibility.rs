@@ -110,46 +110,41 @@ fn corners_of_pair(quads: &[Parallelogram], a: Piece, b: Piece) -> [V3; 8] {
     [ca[0], ca[1], ca[2], ca[3], cb[0], cb[1], cb[2], cb[3]]
 }
 
-/// The surfaces that may occlude some ray between pieces `a` and `b`, out of `candidates`
-/// (see [`may_occlude`] for `thorough`).
-pub fn occluders_of(
-    quads: &[Parallelogram],
-    a: Piece,
-    b: Piece,
-    candidates: &[usize],
-    thorough: bool,
-) -> Vec<usize> {
+/// Whether a surface of `bvh` (other than the pieces' own) may occlude some ray between
+/// pieces `a` and `b`: the quick test of [`may_occlude`] on the pieces' hull for the surfaces
+/// in its bounding box, then the thorough one on their whole surfaces' hull, stopping at the
+/// first that passes both.
+pub fn any_occluder(quads: &[Parallelogram], bvh: &Bvh, a: Piece, b: Piece) -> bool {
     let pts = corners_of_pair(quads, a, b);
-    candidates
-        .iter()
-        .copied()
-        .filter(|&k| k != a.surface && k != b.surface && may_occlude(&pts, thorough, &quads[k]))
-        .collect()
-}
-
-/// Whether any of `candidates` (other than the pieces' own surfaces) may occlude some ray
-/// between pieces `a` and `b`: the quick test of [`may_occlude`], stopping at the first.
-pub fn any_occluder(quads: &[Parallelogram], a: Piece, b: Piece, candidates: &[usize]) -> bool {
-    let pts = corners_of_pair(quads, a, b);
-    candidates
-        .iter()
-        .any(|&k| k != a.surface && k != b.surface && may_occlude(&pts, false, &quads[k]))
-}
-
-/// For every ordered pair of surfaces (row-major `S × S`), the surfaces that may occlude it.
-pub fn surface_occluders(quads: &[Parallelogram]) -> Vec<Vec<usize>> {
-    let n = quads.len();
-    let all: Vec<usize> = (0..n).collect();
-    let mut out = vec![Vec::new(); n * n];
-    for i in 0..n {
-        for j in i + 1..n {
-            let o = occluders_of(quads, Piece::whole(i), Piece::whole(j), &all, true);
-            out[j * n + i] = o.clone();
-            out[i * n + j] = o;
+    let whole = corners_of_pair(quads, Piece::whole(a.surface), Piece::whole(b.surface));
+    let (mut lo, mut hi) = (pts[0], pts[0]);
+    for p in &pts[1..] {
+        for i in 0..3 {
+            lo[i] = lo[i].min(p[i]);
+            hi[i] = hi[i].max(p[i]);
         }
     }
-    out
+    // the quick test's tolerance reaches this far outside the box
+    let pad = 1e-8 * norm(sub(hi, lo)).max(1e-300);
+    for i in 0..3 {
+        lo[i] -= pad;
+        hi[i] += pad;
+    }
+    let mut looked = 0;
+    bvh.any_in_box(lo, hi, |k| {
+        looked += 1;
+        looked > HULL_TEST_BUDGET
+            || (k != a.surface
+                && k != b.surface
+                && may_occlude(&pts, false, &quads[k])
+                && may_occlude(&whole, true, &quads[k]))
+    })
 }
+
+/// The most surfaces in a pair's box that [`any_occluder`] tests; beyond them it answers
+/// that something may occlude, and rays decide. In a scene of many small surfaces a box may
+/// hold thousands, and a ray through the tree costs less than the tests of a few dozen.
+pub const HULL_TEST_BUDGET: usize = 256;
 
 /// SplitMix64: the seeded generator of the jitter.
 #[derive(Debug, Clone)]
@@ -435,8 +430,17 @@ mod tests {
         ]);
         let far = square(3.0, 5.0, 6.0, true);
         let quads = [floor, ceiling, blocker, wall, far];
-        let occ = surface_occluders(&quads);
-        assert_eq!(occ[1], vec![2]);
+        // the blocker may come between the floor and the ceiling; without it, neither the
+        // wall beside them nor the far square may
+        let (whole0, whole1) = (Piece::whole(0), Piece::whole(1));
+        assert!(any_occluder(
+            &quads,
+            &Bvh::occluders(&quads),
+            whole0,
+            whole1
+        ));
+        let open = [floor, ceiling, wall, far];
+        assert!(!any_occluder(&open, &Bvh::occluders(&open), whole0, whole1));
         let bvh = Bvh::new(&quads);
         let mut rays = 0;
         let v = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 8, 7, &mut rays).whole;

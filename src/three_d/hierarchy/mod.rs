@@ -4,7 +4,11 @@
 //!
 //! Instead of the whole Galerkin matrix of eq. (11), only the interactions that the refinement
 //! oracle ([`refine`]) asks for are built, as links between elements of per-surface quadtrees
-//! ([`tree`]) at whatever levels carry the transfer to within ε. Solving alternates
+//! ([`tree`]) at whatever levels carry the transfer to within ε. A mesh is refined as one
+//! surface: its triangles are the leaves of a cluster tree ([`crate::three_d::cluster`]), and
+//! its pairs with the other surfaces (and itself) start from the tree's root and split
+//! clusters down to the triangles' elements where the oracle of [`clustered`] asks; links that
+//! stay between clusters carry the oriented point-to-point transfer. Solving alternates
 //!
 //! 1. gather: H_R = Σ_links T_RS B_S over each element's links;
 //! 2. push-pull: H pushed down to the leaves, B = E + ρ H there, B pulled back up;
@@ -19,6 +23,7 @@
 //! exposed part), push-pull turns them into that polynomial by G⁺, and the numbers reported
 //! count the covered part as B = E.
 
+pub mod clustered;
 pub mod refine;
 pub mod sizing;
 pub mod tree;
@@ -31,6 +36,8 @@ use crate::methods::solve::Solved;
 use crate::progress::{Cancelled, Phase, Progress};
 use crate::result::HierarchyStats;
 use crate::scene::{Job, Quad, Rgb, SceneKind};
+use crate::three_d::bvh::Bvh;
+use crate::three_d::cluster::{is_cluster, Bound, Clusters};
 use crate::three_d::cover::{Exposure, Mask, Partial};
 use crate::three_d::geometry::Piece;
 use crate::three_d::projection::{piece_emission, Geometry};
@@ -84,6 +91,14 @@ pub struct Hierarchy<'g> {
     pub contacts: Vec<Vec<[[f64; 2]; 2]>>,
     pub elements: Vec<Element>,
     pub links: Vec<Link>,
+    /// The cluster tree over the patches, where the refinement starts ([`clustered`]).
+    pub clusters: Clusters,
+    /// Links with a cluster at one end or both.
+    pub cluster_links: Vec<clustered::ClusterLink>,
+    /// Cluster pairs accepted without a link because none of their rays got through.
+    pub hidden_clusters: Vec<(u32, u32)>,
+    /// Per cluster, what the oracle needs of its members, from the last solve.
+    pub cluster_state: Vec<clustered::State>,
     pub rays: u64,
     pub refinements: usize,
     /// The most links the refinement may make: their blocks (k⁴ numbers each) in 1 GiB.
@@ -108,7 +123,9 @@ impl<'g> Hierarchy<'g> {
             .flat_map(|q| q.material.emission)
             .fold(0.0, f64::max);
         let levels: Vec<u32> = geo.quads.iter().map(|q| sizing.finest_level(q)).collect();
-        let masks = Mask::of_scene(&geo.quads, &geo.bvh, |i| 1 << levels[i]);
+        let all = Bvh::new(&geo.quads);
+        let groups = surface_groups(quads);
+        let masks = Mask::of_scene(&geo.bvh, &all, |i| 1 << levels[i]);
         let elements = quads
             .iter()
             .enumerate()
@@ -146,20 +163,7 @@ impl<'g> Hierarchy<'g> {
             sizing,
             threshold: epsilon * emax,
             typical: 0.0,
-            // surfaces as the document names them: a mesh's triangles count once
-            indirect: (0..quads.len())
-                .map(|i| {
-                    let facing: std::collections::HashSet<&str> = (0..quads.len())
-                        .filter(|&j| {
-                            j != i
-                                && geo.facing(i, j)
-                                && quads[j].material.emission.iter().all(|&e| e == 0.0)
-                        })
-                        .map(|j| quads[j].name.as_str())
-                        .collect();
-                    facing.len().max(1) as f64
-                })
-                .collect(),
+            indirect: indirect_weights(geo, quads, &groups),
             rho: quads
                 .iter()
                 .map(|q| q.material.reflectance.iter().copied().fold(0.0, f64::max))
@@ -170,10 +174,14 @@ impl<'g> Hierarchy<'g> {
             hidden: Vec::new(),
             masks,
             contacts: (0..quads.len())
-                .map(|i| crate::three_d::cover::contacts(&geo.quads, i))
+                .map(|i| crate::three_d::cover::contacts(&all, i))
                 .collect(),
             elements,
             links: Vec::new(),
+            clusters: Clusters::new(&geo.quads, &groups),
+            cluster_links: Vec::new(),
+            hidden_clusters: Vec::new(),
+            cluster_state: Vec::new(),
             rays: 0,
             refinements: 0,
             max_links: LINK_BYTES / (8 * k.pow(4) + 64),
@@ -201,14 +209,23 @@ impl<'g> Hierarchy<'g> {
         self.levels[self.elements[e as usize].piece.surface]
     }
 
-    /// Links every pair of facing surfaces, refined against the current B.
+    /// Links the scene to itself, refined against the current B: every ordered pair of the
+    /// document's surfaces, each a patch or the root of its mesh's cluster tree (a mesh also
+    /// with itself); two patches only when they face each other.
     pub fn link_all(&mut self, progress: &dyn Progress) -> Result<(), Cancelled> {
-        let n = self.quads.len();
-        let pairs: Vec<(u32, u32)> = (0..n)
-            .flat_map(|i| (0..n).map(move |j| (i, j)))
-            .filter(|&(i, j)| i != j && self.geo.facing(i, j))
-            .map(|(i, j)| (i as u32, j as u32))
-            .collect();
+        self.cluster_state = self.measure_clusters();
+        let roots = &self.clusters.roots;
+        let mut pairs = Vec::new();
+        for &a in roots {
+            for &b in roots {
+                let patches = !is_cluster(a) && !is_cluster(b);
+                if (patches && self.geo.facing(a as usize, b as usize))
+                    || (!patches && (a != b || is_cluster(a)))
+                {
+                    pairs.push((a, b));
+                }
+            }
+        }
         let mut pending = Vec::new();
         self.refine_all(pairs, &mut pending, progress)?;
         self.links = self.make_links(&pending, progress)?;
@@ -296,6 +313,25 @@ impl<'g> Hierarchy<'g> {
                 self.hidden.push((r, s, x));
             }
         }
+        // links with a cluster at an end, and hidden cluster pairs: judged again afresh
+        self.cluster_state = self.measure_clusters();
+        let old = std::mem::take(&mut self.cluster_links);
+        for l in old {
+            if self.cluster_outgrown(l.recv, l.src, l.smooth) {
+                again.push((l.recv, l.src));
+                reopened += 1;
+            } else {
+                self.cluster_links.push(l);
+            }
+        }
+        for (r, s) in std::mem::take(&mut self.hidden_clusters) {
+            if self.cluster_outgrown(r, s, 1.0) {
+                again.push((r, s));
+                reopened += 1;
+            } else {
+                self.hidden_clusters.push((r, s));
+            }
+        }
         let mut pending = Vec::new();
         self.refine_all(again, &mut pending, progress)?;
         // a pair may come back unrefined (its estimate changed): keep its block
@@ -360,6 +396,7 @@ impl<'g> Hierarchy<'g> {
         for (r, h) in gathered {
             self.elements[r as usize].h = h;
         }
+        self.gather_clusters();
         let mut change = 0.0;
         let mut norm = 0.0;
         for root in 0..self.quads.len() {
@@ -516,7 +553,7 @@ impl<'g> Hierarchy<'g> {
         HierarchyStats {
             elements: self.elements.len(),
             leaves: self.elements.iter().filter(|e| e.is_leaf()).count(),
-            links: self.links.len(),
+            links: self.links.len() + self.cluster_links.len(),
             levels: self
                 .elements
                 .iter()
@@ -528,6 +565,60 @@ impl<'g> Hierarchy<'g> {
             min_element_size: Some(self.sizing.min_element_size),
         }
     }
+}
+
+/// Per patch: how many of the scene's surfaces (as the document names them: a mesh counts
+/// once) that emit nothing face its surface (at least 1), the weight w_R of the oracle for
+/// inter-reflected light ([`refine`]). A surface of one patch faces another of one patch by
+/// their corners ([`Geometry::facing`]); a mesh by the bound of its triangles.
+fn indirect_weights(geo: &Geometry, quads: &[Quad], groups: &[Vec<u32>]) -> Vec<f64> {
+    let mut of = vec![0; quads.len()];
+    for (g, members) in groups.iter().enumerate() {
+        members.iter().for_each(|&p| of[p as usize] = g);
+    }
+    let bounds: Vec<Bound> = groups
+        .iter()
+        .map(|g| Bound::of_patches(&geo.quads, g))
+        .collect();
+    let dark: Vec<bool> = groups
+        .iter()
+        .map(|g| {
+            g.iter().all(|&p| {
+                quads[p as usize]
+                    .material
+                    .emission
+                    .iter()
+                    .all(|&e| e == 0.0)
+            })
+        })
+        .collect();
+    let faces = |a: usize, b: usize| match (&groups[a][..], &groups[b][..]) {
+        ([i], [j]) => geo.facing(*i as usize, *j as usize),
+        _ => bounds[a].facing(&bounds[b]),
+    };
+    let weight: Vec<f64> = (0..groups.len())
+        .map(|a| {
+            let n = (0..groups.len())
+                .filter(|&b| b != a && dark[b] && faces(a, b))
+                .count();
+            n.max(1) as f64
+        })
+        .collect();
+    of.iter().map(|&g| weight[g]).collect()
+}
+
+/// The patches of each surface as the document names them, in the order of their first.
+fn surface_groups(quads: &[Quad]) -> Vec<Vec<u32>> {
+    let mut groups: Vec<Vec<u32>> = Vec::new();
+    let mut index = std::collections::HashMap::new();
+    for (i, q) in quads.iter().enumerate() {
+        let g = *index.entry(q.name.as_str()).or_insert_with(|| {
+            groups.push(Vec::new());
+            groups.len() - 1
+        });
+        groups[g].push(i as u32);
+    }
+    groups
 }
 
 /// The memory the links' blocks may take.
@@ -658,6 +749,25 @@ pub fn solve(
         let (r, s) = (&h.elements[l.recv as usize], &h.elements[l.src as usize]);
         kept_squares[r.piece.surface * surfaces + s.piece.surface] +=
             l.block.iter().map(|v| v * v).sum::<f64>();
+    }
+    // a cluster link's kernel is one value on each pair of members it joins,
+    // V (n_i · −ω)₊ (n_j · ω)₊ / (π r²), whose block is that value times √(A_i A_j)
+    if !with_triangles {
+        for l in &h.cluster_links {
+            let mut sources = Vec::new();
+            h.for_members(l.src, |e, a, n| sources.push((e, a, n)));
+            h.for_members(l.recv, |e, a, n| {
+                let ci = -crate::three_d::geometry::dot(n, l.dir);
+                let r = h.elements[e as usize].piece.surface;
+                for &(f, b, m) in sources.iter().filter(|_| ci > 0.0) {
+                    let cj = crate::three_d::geometry::dot(m, l.dir);
+                    if cj > 0.0 {
+                        let s = h.elements[f as usize].piece.surface;
+                        kept_squares[r * surfaces + s] += (l.gain * ci * cj).powi(2) * a * b;
+                    }
+                }
+            });
+        }
     }
     let magnitudes = crate::methods::compress::sample_ranks(sorted.len(), job.output.coefficients)
         .into_iter()

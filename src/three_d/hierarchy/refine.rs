@@ -27,9 +27,11 @@
 //! otherwise the pair becomes a link whose k² × k² block is integrated by [`crate::three_d::transfer`]
 //! and scaled by the visible fraction.
 
+use super::clustered::{ClusterLink, ClusterVerdict};
 use super::tree::{push, Element, NONE};
 use super::Hierarchy;
 use crate::progress::{Cancelled, Progress};
+use crate::three_d::cluster::is_cluster;
 use crate::three_d::congruence::Congruence;
 use crate::three_d::cover::Exposure;
 use crate::three_d::geometry::Piece;
@@ -363,7 +365,7 @@ impl Hierarchy<'_> {
         self.elements[r as usize].level < self.receiver_first
     }
 
-    fn splittable(&self, e: u32) -> bool {
+    pub(super) fn splittable(&self, e: u32) -> bool {
         self.elements[e as usize].level < self.finest(e)
     }
 
@@ -485,16 +487,41 @@ impl Hierarchy<'_> {
     /// the same on every run.
     pub(super) fn refine_all(
         &mut self,
-        mut pairs: Vec<(u32, u32)>,
+        mut frontier: Vec<(u32, u32)>,
         out: &mut Vec<(u32, u32, Factors, Seen)>,
         progress: &dyn Progress,
     ) -> Result<(), Cancelled> {
-        while !pairs.is_empty() {
+        while !frontier.is_empty() {
             progress.check()?;
-            if self.links.len() + out.len() + pairs.len() > self.max_links {
+            if self.links.len() + out.len() + frontier.len() > self.max_links {
                 self.too_large = true;
                 return Err(Cancelled);
             }
+            // pairs with a cluster at an end go to their own oracle ([`super::clustered`]);
+            // pairs of elements of two facing patches to this one
+            let (clustered, elements): (Vec<_>, Vec<_>) = frontier
+                .into_iter()
+                .partition(|&(r, s)| is_cluster(r) || is_cluster(s));
+            let pairs: Vec<(u32, u32)> = elements
+                .into_iter()
+                .filter(|&(r, s)| {
+                    let (a, b) = (
+                        self.elements[r as usize].piece.surface,
+                        self.elements[s as usize].piece.surface,
+                    );
+                    self.geo.facing(a, b)
+                })
+                .collect();
+            let cluster_verdicts: Vec<(ClusterVerdict, u64)> = clustered
+                .par_iter()
+                .map(|&(r, s)| {
+                    if progress.cancelled() {
+                        (ClusterVerdict::Inert, 0)
+                    } else {
+                        self.judge_cluster(r, s)
+                    }
+                })
+                .collect();
             // the estimate depends on the pair's shape only: once per class of congruent
             // pairs (the estimate's points are symmetric on the receiver)
             let piece = |e: u32| self.elements[e as usize].piece;
@@ -547,9 +574,47 @@ impl Hierarchy<'_> {
                     Verdict::Inert => {}
                 }
             }
-            pairs = next;
+            for (&(r, s), (verdict, rays)) in clustered.iter().zip(cluster_verdicts) {
+                self.rays += rays;
+                match verdict {
+                    ClusterVerdict::Both => {
+                        let [a, b] = self.clusters.get(r).children;
+                        next.extend([(a, a), (a, b), (b, a), (b, b)]);
+                    }
+                    ClusterVerdict::Receiver => {
+                        for c in self.children_of(r) {
+                            next.push((c, s));
+                        }
+                    }
+                    ClusterVerdict::Source => {
+                        for c in self.children_of(s) {
+                            next.push((r, c));
+                        }
+                    }
+                    ClusterVerdict::Link(g) => self.cluster_links.push(ClusterLink {
+                        recv: r,
+                        src: s,
+                        dir: g.dir,
+                        gain: g.gain,
+                        smooth: g.smooth,
+                    }),
+                    ClusterVerdict::Hidden => self.hidden_clusters.push((r, s)),
+                    ClusterVerdict::Inert => {}
+                }
+            }
+            frontier = next;
         }
         Ok(())
+    }
+
+    /// The children of a cluster (two) or of an element (four, split now).
+    fn children_of(&mut self, id: u32) -> Vec<u32> {
+        if is_cluster(id) {
+            self.clusters.get(id).children.to_vec()
+        } else {
+            let first = self.split(id);
+            (first..first + 4).collect()
+        }
     }
 
     /// Integrates the blocks of accepted pairs, in parallel: one per class of congruent pairs

@@ -1,0 +1,428 @@
+//! Volume clusters over the patches of a 3D scene (Smits, Arvo and Greenberg, "A Clustering
+//! Algorithm for Radiosity in Complex Environments", SIGGRAPH 1994; Sillion, "A Unified
+//! Hierarchical Algorithm for Global Illumination with Scattering Volumes and Object
+//! Clusters", IEEE TVCG 1995).
+//!
+//! The hierarchical solver starts from one link of the root cluster to itself instead of a
+//! link for every pair of facing patches, and splits clusters where the oracle asks, down to
+//! the patches' element trees. A link that stays between clusters carries the transfer of
+//! eq. (3) with both ends taken as points, the clusters' centres, and every member keeping its
+//! own orientation (the oriented transfer of Sillion 1995, §4):
+//!
+//! ```text
+//! I_S(ω)   = Σ_{j ∈ S} B̄_j A_j (n_j · ω)₊ / π          (the radiant intensity of S toward ω)
+//! H_i     += V · I_S(ω) · (n_i · −ω)₊ / r²               (the irradiance of each member i of R)
+//! ```
+//!
+//! with ω the unit vector from S's centre to R's, r their distance and V the visible fraction
+//! between the two clusters. It is exact in the limit of small clusters far apart; the oracle
+//! bounds what it leaves out by the clusters' size over their distance.
+//!
+//! Two clusters interact only if a point of each may be in front of a member of the other:
+//! each cluster's box, the cone of its members' normals and the range of its points along the
+//! cone's axis bound that ([`Bound::front`]). So the clusters of a planar mesh never link to
+//! one another, and those of a convex one only along their shared borders.
+
+use crate::three_d::geometry::{add, dot, norm, scale, sub, Parallelogram, V3};
+
+/// A reference to a cluster (this bit set) or to an element of the hierarchy.
+pub const CLUSTER: u32 = 1 << 31;
+
+/// The box, normal cone and slab of a set of surfaces: what the interaction tests need.
+#[derive(Debug, Clone, Copy)]
+pub struct Bound {
+    pub lo: V3,
+    pub hi: V3,
+    /// The axis of the normal cone (unit), and the cosine and sine of its half-angle; a cone
+    /// of π/2 or more (cos ≤ 0) holds every direction that matters.
+    pub axis: V3,
+    pub cos: f64,
+    pub sin: f64,
+    /// The least and largest `axis · x` over the surfaces' points.
+    pub slab: [f64; 2],
+}
+
+impl Bound {
+    /// The bound of one flat polygon (corners, repeated corners allowed) with normal `n`.
+    pub fn of_polygon(corners: &[V3], n: V3) -> Bound {
+        let (mut lo, mut hi) = (corners[0], corners[0]);
+        for c in corners {
+            for a in 0..3 {
+                lo[a] = lo[a].min(c[a]);
+                hi[a] = hi[a].max(c[a]);
+            }
+        }
+        let along = corners.iter().map(|&c| dot(n, c));
+        let slab = along.fold([f64::INFINITY, f64::NEG_INFINITY], |s, x| {
+            [s[0].min(x), s[1].max(x)]
+        });
+        Bound {
+            lo,
+            hi,
+            axis: n,
+            cos: 1.0,
+            sin: 0.0,
+            slab,
+        }
+    }
+
+    /// The bound of patches `members` of `quads`, weighted by area for the cone's axis.
+    pub fn of_patches(quads: &[Parallelogram], members: &[u32]) -> Bound {
+        let mut sum = [0.0; 3];
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for &m in members {
+            let q = &quads[m as usize];
+            sum = add(sum, scale(q.n, q.area));
+            for c in q.outline() {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(c[a]);
+                    hi[a] = hi[a].max(c[a]);
+                }
+            }
+        }
+        let len = norm(sum);
+        let axis = if len > 0.0 {
+            scale(sum, 1.0 / len)
+        } else {
+            [0.0, 0.0, 1.0]
+        };
+        let cos = members
+            .iter()
+            .map(|&m| dot(axis, quads[m as usize].n))
+            .fold(1.0, f64::min);
+        // the sine from the cross products: from 1 − cos² it would be √(2 · rounding), and the
+        // parts of one plane would seem to face each other across it
+        let sin = members
+            .iter()
+            .map(|&m| norm(crate::three_d::geometry::cross(axis, quads[m as usize].n)))
+            .fold(0.0, f64::max);
+        let slab = members
+            .iter()
+            .flat_map(|&m| quads[m as usize].outline())
+            .map(|c| dot(axis, c))
+            .fold([f64::INFINITY, f64::NEG_INFINITY], |s, x| {
+                [s[0].min(x), s[1].max(x)]
+            });
+        Bound {
+            lo,
+            hi,
+            axis,
+            cos: if len > 0.0 { cos.max(-1.0) } else { -1.0 },
+            sin: sin.min(1.0),
+            slab,
+        }
+    }
+
+    pub fn diameter(&self) -> f64 {
+        norm(sub(self.hi, self.lo))
+    }
+
+    pub fn centre(&self) -> V3 {
+        scale(add(self.lo, self.hi), 0.5)
+    }
+
+    /// The distance between the two boxes (0 when they meet).
+    pub fn distance(&self, other: &Bound) -> f64 {
+        let gap = |a: usize| {
+            (other.lo[a] - self.hi[a])
+                .max(self.lo[a] - other.hi[a])
+                .max(0.0)
+        };
+        norm([gap(0), gap(1), gap(2)])
+    }
+
+    /// The largest distance between a point of each box.
+    fn reach(&self, other: &Bound) -> f64 {
+        let far = |a: usize| (other.hi[a] - self.lo[a]).max(self.hi[a] - other.lo[a]);
+        norm([far(0), far(1), far(2)])
+    }
+
+    /// The largest `d · x` over the box.
+    fn support(&self, d: V3) -> f64 {
+        (0..3)
+            .map(|a| (d[a] * self.lo[a]).max(d[a] * self.hi[a]))
+            .sum()
+    }
+
+    /// Whether a point of `other` may be strictly in front of a surface of `self`: an upper
+    /// bound of n_r · (x_s − x_r) over the normals n_r of self's cone, its points x_r and the
+    /// points x_s of `other` is above the rounding of the coordinates. With n_r = a cos α + p
+    /// sin α (α within the cone, p ⟂ a), n_r · d ≤ max(a · d, cos θ · a · d) + sin θ |d|;
+    /// a · x_s is bounded by other's slab along its own axis plus its box across it, which is
+    /// exact for two parts of one plane.
+    pub fn front(&self, other: &Bound) -> bool {
+        if self.cos <= 0.0 {
+            return true;
+        }
+        let a = self.axis;
+        let c = dot(a, other.axis);
+        let across = sub(a, scale(other.axis, c));
+        let along = if c >= 0.0 {
+            c * other.slab[1]
+        } else {
+            c * other.slab[0]
+        };
+        let m = along + other.support(across) - self.slab[0];
+        let reach = self.reach(other);
+        let bound = if m >= 0.0 { m } else { self.cos * m } + self.sin * reach;
+        let tol = 1e-9 * (self.diameter() + other.diameter());
+        bound > tol
+    }
+
+    /// Whether the two sets may exchange light: each may be in front of the other.
+    pub fn facing(&self, other: &Bound) -> bool {
+        self.front(other) && other.front(self)
+    }
+}
+
+/// One cluster: a box of patches, with two children (clusters, or patches as references to
+/// their root elements).
+#[derive(Debug, Clone)]
+pub struct Cluster {
+    pub bound: Bound,
+    /// Its members: `order[members.0..members.1]` of [`Clusters`].
+    pub members: (u32, u32),
+    pub children: [u32; 2],
+    /// The sum of the members' areas.
+    pub area: f64,
+    /// The area-weighted centroid of its members.
+    pub centre: V3,
+}
+
+/// The cluster tree of a scene's patches.
+#[derive(Debug, Clone)]
+pub struct Clusters {
+    pub nodes: Vec<Cluster>,
+    /// The patches, each cluster's members one run of them.
+    pub order: Vec<u32>,
+    /// The areas of `order` summed up to each position (one more than the patches).
+    prefix: Vec<f64>,
+    /// The root of each group's tree: a cluster, or the group's only patch.
+    pub roots: Vec<u32>,
+}
+
+/// A member with at least this share of its cluster's diameter and of its area is a child
+/// of its own: a wall in a cluster of small objects would keep the cluster as large as the
+/// room. (The share of the area keeps a cluster of long, thin triangles from being peeled one
+/// by one into a chain.)
+const PEEL: f64 = 0.5;
+
+impl Clusters {
+    /// A tree over each group of `quads` (the patches of one mesh): from the top, a member as
+    /// large as half the box is split off alone, else the members are halved at the median of
+    /// their centroids along the longest side of the centroids' box (O(P log P)).
+    pub fn new(quads: &[Parallelogram], groups: &[Vec<u32>]) -> Clusters {
+        let centroid = |q: &Parallelogram| {
+            let c = q.outline();
+            if q.tri {
+                scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0)
+            } else {
+                scale(add(c[0], c[2]), 0.5)
+            }
+        };
+        let centres: Vec<V3> = quads.iter().map(centroid).collect();
+        let mut tree = Clusters {
+            nodes: Vec::new(),
+            order: Vec::new(),
+            prefix: vec![0.0],
+            roots: Vec::new(),
+        };
+        let mut order = Vec::new();
+        for group in groups {
+            let start = order.len();
+            order.extend_from_slice(group);
+            let root = tree.build(quads, &centres, &mut order[start..], start as u32);
+            tree.roots.push(root);
+        }
+        let mut sum = 0.0;
+        for &p in &order {
+            sum += quads[p as usize].area;
+            tree.prefix.push(sum);
+        }
+        tree.order = order;
+        tree
+    }
+
+    fn build(
+        &mut self,
+        quads: &[Parallelogram],
+        centres: &[V3],
+        members: &mut [u32],
+        start: u32,
+    ) -> u32 {
+        if members.len() == 1 {
+            return members[0];
+        }
+        let bound = Bound::of_patches(quads, members);
+        let area: f64 = members.iter().map(|&m| quads[m as usize].area).sum();
+        let centre = scale(
+            members.iter().fold([0.0; 3], |s, &m| {
+                add(s, scale(centres[m as usize], quads[m as usize].area))
+            }),
+            1.0 / area,
+        );
+        let me = self.nodes.len();
+        self.nodes.push(Cluster {
+            bound,
+            members: (start, start + members.len() as u32),
+            children: [0; 2],
+            area,
+            centre,
+        });
+        // the largest member, split off alone when it is half the box and half the area
+        let (big, size) = members
+            .iter()
+            .enumerate()
+            .map(|(k, &m)| (k, quads[m as usize].diameter()))
+            .fold((0, 0.0), |b, x| if x.1 > b.1 { x } else { b });
+        let dominant = quads[members[big] as usize].area >= PEEL * area;
+        let half = if size >= PEEL * bound.diameter() && dominant {
+            members.swap(0, big);
+            1
+        } else {
+            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for &m in members.iter() {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(centres[m as usize][a]);
+                    hi[a] = hi[a].max(centres[m as usize][a]);
+                }
+            }
+            let axis = (0..3)
+                .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+                .unwrap_or(0);
+            let mid = members.len() / 2;
+            members.select_nth_unstable_by(mid, |&a, &b| {
+                centres[a as usize][axis]
+                    .total_cmp(&centres[b as usize][axis])
+                    .then(a.cmp(&b))
+            });
+            mid
+        };
+        let (left, right) = members.split_at_mut(half);
+        let a = self.build(quads, centres, left, start);
+        let b = self.build(quads, centres, right, start + half as u32);
+        self.nodes[me].children = [a, b];
+        CLUSTER | me as u32
+    }
+
+    pub fn get(&self, reference: u32) -> &Cluster {
+        &self.nodes[(reference & !CLUSTER) as usize]
+    }
+
+    /// The member of cluster `reference` at the share `u` ∈ [0, 1) of its area, in the order
+    /// of its members: a member picked by area from a uniform `u`.
+    pub fn pick(&self, reference: u32, u: f64) -> usize {
+        let (a, b) = self.get(reference).members;
+        let (a, b) = (a as usize, b as usize);
+        let target = self.prefix[a] + u * (self.prefix[b] - self.prefix[a]);
+        // the first member whose run of area ends beyond the target
+        let k = a + self.prefix[a + 1..=b].partition_point(|&x| x <= target);
+        self.order[k.min(b - 1)] as usize
+    }
+
+    /// The patches of cluster `reference`.
+    pub fn members(&self, reference: u32) -> &[u32] {
+        let (a, b) = self.get(reference).members;
+        &self.order[a as usize..b as usize]
+    }
+}
+
+/// Whether `reference` names a cluster rather than an element.
+pub fn is_cluster(reference: u32) -> bool {
+    reference & CLUSTER != 0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::three_d::geometry::Parallelogram;
+
+    fn tri(a: V3, b: V3, c: V3) -> Parallelogram {
+        let mut p = Parallelogram::new(&[a, b, add(b, sub(c, a)), c]);
+        p.tri = true;
+        p.area = 0.5 * p.jac;
+        p
+    }
+
+    /// A tilted plane cut into triangles: no part of it faces another.
+    #[test]
+    fn parts_of_one_plane_never_face() {
+        let (u, v) = ([1.0, 0.2, 0.3], [-0.1, 1.0, 0.4]);
+        let at = |i: f64, j: f64| add(scale(u, i), scale(v, j));
+        let mut quads = Vec::new();
+        for i in 0..8 {
+            for j in 0..8 {
+                let (i, j) = (i as f64, j as f64);
+                quads.push(tri(at(i, j), at(i + 1.0, j), at(i, j + 1.0)));
+                quads.push(tri(at(i + 1.0, j), at(i + 1.0, j + 1.0), at(i, j + 1.0)));
+            }
+        }
+        let tree = Clusters::new(&quads, &[(0..128).collect()]);
+        assert_eq!(tree.order.len(), 128);
+        for a in &tree.nodes {
+            for b in &tree.nodes {
+                assert!(!a.bound.facing(&b.bound));
+            }
+        }
+    }
+
+    /// Two squares face to face across a gap face each other, and not when one is turned away.
+    #[test]
+    fn facing_squares_face() {
+        let floor = Parallelogram::new(&[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ]);
+        let ceiling = Parallelogram::new(&[
+            [0.0, 0.0, 1.0],
+            [0.0, 1.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [1.0, 0.0, 1.0],
+        ]);
+        let roof = Parallelogram::new(&[
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [0.0, 1.0, 1.0],
+        ]);
+        let b = |q: &Parallelogram| Bound::of_patches(std::slice::from_ref(q), &[0]);
+        assert!(b(&floor).facing(&b(&ceiling)));
+        assert!(!b(&floor).facing(&b(&roof)));
+        assert!(b(&floor).front(&b(&roof)) && !b(&roof).front(&b(&floor)));
+    }
+
+    /// Every patch is in the tree once, and each cluster's box, cone, slab and area hold its
+    /// members.
+    #[test]
+    fn the_tree_holds_every_patch_once_and_bounds_its_members() {
+        let mut quads = Vec::new();
+        for k in 0..40 {
+            let x = k as f64 * 0.37;
+            quads.push(tri(
+                [x, 0.0, (k % 3) as f64],
+                [x + 0.5, 0.1, 0.2],
+                [x, 0.7, 0.1],
+            ));
+        }
+        let tree = Clusters::new(&quads, &[(0..40).collect()]);
+        let mut seen = tree.order.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..40).collect::<Vec<u32>>());
+        for (i, c) in tree.nodes.iter().enumerate() {
+            let members = tree.members(CLUSTER | i as u32);
+            for &m in members {
+                let q = &quads[m as usize];
+                assert!(dot(q.n, c.bound.axis) >= c.bound.cos - 1e-9);
+                for p in q.outline() {
+                    let x = dot(c.bound.axis, p);
+                    assert!(x >= c.bound.slab[0] - 1e-9 && x <= c.bound.slab[1] + 1e-9);
+                    assert!((0..3).all(|a| p[a] >= c.bound.lo[a] && p[a] <= c.bound.hi[a]));
+                }
+            }
+            let area: f64 = members.iter().map(|&m| quads[m as usize].area).sum();
+            assert!((area - c.area).abs() < 1e-9 * area);
+        }
+    }
+}
