@@ -304,6 +304,60 @@ fn parallel_squares_of_triangles_give_howells_form_factor() {
     }
 }
 
+/// Two parallel unit squares ten units apart, each a mesh of eight triangles: the meshes'
+/// cluster trees are one diameter apart, so the oracle links them root to root by the oriented
+/// point-to-point transfer of a cluster link (two links, one each way), and the receiver's
+/// mean is ρ E F with F Howell's C-11. Taking both squares as points at distance c = 10 makes
+/// F = A / (π c²) with a relative error of order (d / c)² = 2 % for their diagonal d = √2
+/// (the kernel's expansion about the centres): that is the bound.
+#[test]
+fn far_meshes_are_linked_as_clusters_and_give_howells_form_factor() {
+    // C-11 for a × b squares at distance c, X = a / c, Y = b / c
+    let (x, y) = (0.1f64, 0.1f64);
+    let (x2, y2) = (1.0 + x * x, 1.0 + y * y);
+    let f = 2.0 / (std::f64::consts::PI * x * y)
+        * ((x2 * y2 / (x2 + y2 - 1.0)).sqrt().ln()
+            + x * y2.sqrt() * (x / y2.sqrt()).atan()
+            + y * x2.sqrt() * (y / x2.sqrt()).atan()
+            - x * x.atan()
+            - y * y.atan());
+    let grid = |z: f64, up: bool| {
+        let positions: Vec<[f64; 3]> = (0..9)
+            .map(|k| [(k % 3) as f64 * 0.5, (k / 3) as f64 * 0.5, z])
+            .collect();
+        let mut triangles = Vec::new();
+        for j in 0..2 {
+            for i in 0..2 {
+                let a = j * 3 + i;
+                let (b, c, d) = (a + 1, a + 4, a + 3);
+                if up {
+                    triangles.extend([[a, b, c], [a, c, d]]);
+                } else {
+                    triangles.extend([[a, c, b], [a, d, c]]);
+                }
+            }
+        }
+        json!({"positions": positions, "triangles": triangles})
+    };
+    let doc = json!({
+        "scene": {"kind": "3d", "surfaces": [
+            {"name": "lamp", "reflectance": 0.0, "emission": 1.0, "mesh": grid(10.0, false)},
+            {"name": "floor", "reflectance": 0.5, "mesh": grid(0.0, true)},
+        ]},
+        "solver": {"method": "hierarchical", "order": 1},
+        "output": {"image": {"width": 16, "height": 16}}
+    });
+    let o = run(doc);
+    let links = o.result.hierarchical.as_ref().expect("hierarchical").links;
+    assert_eq!(links, 2, "one cluster link each way");
+    let got = o.result.surfaces[1].mean[0];
+    assert!(
+        (got - 0.5 * f).abs() < 0.02 * 0.5 * f,
+        "{got} against ρ E F = {}",
+        0.5 * f
+    );
+}
+
 /// Howell's C-14 between two unit squares at a right angle sharing an edge (F = 0.200044),
 /// each a parallelogram or two triangles: the singular near field along the common edge, and
 /// the triangles' own shared diagonal, give the closed form's value.
