@@ -117,10 +117,6 @@ impl Bound {
         norm(sub(self.hi, self.lo))
     }
 
-    pub fn centre(&self) -> V3 {
-        scale(add(self.lo, self.hi), 0.5)
-    }
-
     /// The distance between the two boxes (0 when they meet).
     pub fn distance(&self, other: &Bound) -> f64 {
         let gap = |a: usize| {
