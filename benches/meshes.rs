@@ -11,73 +11,19 @@ use serde_json::{json, Value};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+#[path = "../tests/icosphere/mod.rs"]
+mod icosphere;
+
 /// The icosphere of `level` subdivisions (20 · 4^level triangles), radius `r` about `c`,
 /// facing out.
-fn icosphere(level: u32, c: [f64; 3], r: f64) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut p: Vec<[f64; 3]> = vec![
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ];
-    let mut f: Vec<[usize; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    let unit = |v: [f64; 3]| {
-        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        [v[0] / n, v[1] / n, v[2] / n]
-    };
-    p.iter_mut().for_each(|v| *v = unit(*v));
-    for _ in 0..level {
-        let mut mid = std::collections::HashMap::new();
-        let mut at = |a: usize, b: usize, p: &mut Vec<[f64; 3]>| {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                let m = unit([p[a][0] + p[b][0], p[a][1] + p[b][1], p[a][2] + p[b][2]]);
-                p.push(m);
-                p.len() - 1
-            })
-        };
-        f = f
-            .iter()
-            .flat_map(|&[a, b, c]| {
-                let (ab, bc, ca) = (at(a, b, &mut p), at(b, c, &mut p), at(c, a, &mut p));
-                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
-            })
-            .collect();
+fn icosphere(level: u32, c: [f64; 3], r: f64) -> Value {
+    let mut mesh = icosphere::sphere(level as usize);
+    for p in mesh["positions"].as_array_mut().expect("positions") {
+        for (k, x) in p.as_array_mut().expect("a point").iter_mut().enumerate() {
+            *x = json!(c[k] + r * x.as_f64().expect("a coordinate"));
+        }
     }
-    let p = p
-        .iter()
-        .map(|v| [c[0] + r * v[0], c[1] + r * v[1], c[2] + r * v[2]])
-        .collect();
-    (p, f)
+    mesh
 }
 
 /// A 10 m room with `spheres` icospheres of `level` on a grid at mid-height.
@@ -124,10 +70,9 @@ fn scene(spheres: usize, level: u32) -> Value {
     for k in 0..spheres {
         let (i, j) = (k % side, k / side);
         let c = [step * (i as f64 + 0.5), 4.0, step * (j as f64 + 0.5)];
-        let (positions, triangles) = icosphere(level, c, 0.3 * step);
         surfaces.push(json!({
             "name": format!("ball-{k}"),
-            "mesh": {"positions": positions, "triangles": triangles},
+            "mesh": icosphere(level, c, 0.3 * step),
             "reflectance": [0.7, 0.5, 0.3],
         }));
     }

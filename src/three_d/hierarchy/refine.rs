@@ -497,21 +497,12 @@ impl Hierarchy<'_> {
                 self.too_large = true;
                 return Err(Cancelled);
             }
-            // pairs with a cluster at an end go to their own oracle ([`super::clustered`]);
-            // pairs of elements of two facing patches to this one
-            let (clustered, elements): (Vec<_>, Vec<_>) = frontier
+            // pairs with a cluster at an end go to their own oracle ([`super::clustered`]),
+            // pairs of elements (of two facing patches: `may_link`) to
+            // this one
+            let (clustered, pairs): (Vec<_>, Vec<_>) = frontier
                 .into_iter()
                 .partition(|&(r, s)| is_cluster(r) || is_cluster(s));
-            let pairs: Vec<(u32, u32)> = elements
-                .into_iter()
-                .filter(|&(r, s)| {
-                    let (a, b) = (
-                        self.elements[r as usize].piece.surface,
-                        self.elements[s as usize].piece.surface,
-                    );
-                    self.geo.facing(a, b)
-                })
-                .collect();
             let cluster_verdicts: Vec<(ClusterVerdict, u64)> = clustered
                 .par_iter()
                 .map(|&(r, s)| {
@@ -579,16 +570,17 @@ impl Hierarchy<'_> {
                 match verdict {
                     ClusterVerdict::Both => {
                         let [a, b] = self.clusters.get(r).children;
-                        next.extend([(a, a), (a, b), (b, a), (b, b)]);
+                        let children = [(a, a), (a, b), (b, a), (b, b)];
+                        next.extend(children.into_iter().filter(|&p| self.may_link(p)));
                     }
                     ClusterVerdict::Receiver => {
                         for c in self.children_of(r) {
-                            next.push((c, s));
+                            next.extend(self.may_link((c, s)).then_some((c, s)));
                         }
                     }
                     ClusterVerdict::Source => {
                         for c in self.children_of(s) {
-                            next.push((r, c));
+                            next.extend(self.may_link((r, c)).then_some((r, c)));
                         }
                     }
                     ClusterVerdict::Link(g) => self.cluster_links.push(ClusterLink {
@@ -605,6 +597,17 @@ impl Hierarchy<'_> {
             frontier = next;
         }
         Ok(())
+    }
+
+    /// Whether a pair that a cluster's split makes is worth judging: one with a cluster at an
+    /// end is judged by its bounds; two elements (patches, or pieces of them) only when their
+    /// patches face each other. Pairs of elements made by an element's split inherit that.
+    fn may_link(&self, (r, s): (u32, u32)) -> bool {
+        if is_cluster(r) || is_cluster(s) {
+            return true;
+        }
+        let surface = |e: u32| self.elements[e as usize].piece.surface;
+        self.geo.facing(surface(r), surface(s))
     }
 
     /// The children of a cluster (two) or of an element (four, split now).
