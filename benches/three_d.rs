@@ -84,6 +84,19 @@ fn rays(c: &mut Criterion) {
                 .count()
         })
     });
+    // the camera's walk: the nearest hit along each segment's direction, whole scene
+    let all = Bvh::new(&geo);
+    g.bench_function("first hits through the BVH (cornell box, all cores)", |b| {
+        b.iter(|| {
+            segs.par_iter()
+                .filter(|(a, e, _)| {
+                    let d = [e[0] - a[0], e[1] - a[1], e[2] - a[2]];
+                    all.first_hit(*a, d, 1e-9, f64::INFINITY, [usize::MAX; 2])
+                        .is_some()
+                })
+                .count()
+        })
+    });
     g.finish();
 }
 

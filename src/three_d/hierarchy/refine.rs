@@ -440,11 +440,13 @@ impl Hierarchy<'_> {
         let seed = pair_seed(self.identity(r), self.identity(s));
         let mut rays = 0;
         // a link between big pieces carries much of the light, and its visible fraction
-        // is an average over a large, varied set of rays: more rays for the top levels
-        // (there are few such pairs, so they cost little)
-        let top = self.elements[r as usize]
-            .level
-            .min(self.elements[s as usize].level);
+        // is an average over a large, varied set of rays: more rays for the top levels, as
+        // far as both pieces still have levels below them (a mesh's triangles are the top
+        // level of their own patches, and most are as small as the finest elements: there
+        // are many such pairs, and each carries little)
+        let (el_r, el_s) = (&self.elements[r as usize], &self.elements[s as usize]);
+        let below = (self.finest(r) - el_r.level).min(self.finest(s) - el_s.level);
+        let top = el_r.level.min(el_s.level).max(2u32.saturating_sub(below));
         let grid = VISIBILITY_GRID << 2u32.saturating_sub(top);
         let mask = self.masks[pr.surface].as_ref();
         let bvh = &self.geo.bvh;
