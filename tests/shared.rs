@@ -1,8 +1,9 @@
 //! Several `wavrad serve` processes on one PostgreSQL database (`WAVRAD_TEST_DATABASE_URL`,
 //! see `tests/postgres`): each job solved by one process, every route answering the same from
 //! every process, a dead process's job taken over, a DELETE through one process stopping the
-//! solve in another, SSE through one process following a solve in another, and the same
-//! document posted to two processes at once making one job.
+//! solve in another, SSE through one process following a solve in another, the same
+//! document posted to two processes at once making one job, and synchronous renders answering
+//! what every process serves, whichever process solved them.
 
 mod cluster;
 mod listening;
@@ -137,6 +138,84 @@ async fn the_same_document_posted_to_two_processes_at_once_is_one_job() {
         "each solved once"
     );
     assert_eq!(a.solves(&http).await + b.solves(&http).await, 8);
+}
+
+/// `POST /api/v1/render` answers the image (or, with `Accept: application/json`, the result)
+/// that every process then serves from the database: when the process that took the request
+/// solved the job (it answers with the files its solve wrote, not read back) and when another
+/// did (its worker busy, the process that took the request reads the answer back).
+#[tokio::test(flavor = "multi_thread")]
+async fn synchronous_renders_answer_what_every_process_serves() {
+    let Some(url) = postgres::fresh_database().await else {
+        return;
+    };
+    let http = reqwest::Client::new();
+    let render = |base: String, name: String, json: bool| {
+        let http = http.clone();
+        async move {
+            let mut req = http
+                .post(format!("{base}/api/v1/render"))
+                .header("content-type", "application/json")
+                .body(small(&name).to_string());
+            if json {
+                req = req.header("accept", "application/json");
+            }
+            let res = req.send().await.unwrap();
+            assert_eq!(res.status(), 200, "{name}");
+            let job = res.headers()["content-location"]
+                .to_str()
+                .unwrap()
+                .to_string();
+            let file = if json { "result" } else { "image.png" };
+            (format!("{job}/{file}"), res.bytes().await.unwrap().to_vec())
+        }
+    };
+    // one process: it solves what it takes
+    let servers = [start(&url, &[]).await];
+    for (i, json) in [(0, false), (1, true)] {
+        let (file, answer) = render(servers[0].base.clone(), format!("here {i}"), json).await;
+        let stored = bytes(&http, format!("{}{file}", servers[0].base)).await;
+        assert!(stored == answer, "{file} is not the answer");
+    }
+    assert_eq!(servers[0].solves(&http).await, 2);
+    // two: the one that takes the requests is busy with a long job, the other solves them
+    let servers = [servers.into_iter().next().unwrap(), start(&url, &[]).await];
+    let db = postgres::connect(&url).await;
+    let (code, s) = post(&http, &servers[0].base, &long("busy", 512)).await;
+    assert_eq!(code, 202);
+    let busy_id = s["id"].as_str().unwrap().to_string();
+    let wait = Instant::now();
+    let busy_pid = loop {
+        if let Some(pid) = owner_pid(&db, &busy_id).await {
+            break pid;
+        }
+        assert!(wait.elapsed() < Duration::from_secs(30), "never claimed");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    };
+    let (busy, idle) = if servers[0].pid() == busy_pid {
+        (&servers[0], &servers[1])
+    } else {
+        (&servers[1], &servers[0])
+    };
+    let before = idle.solves(&http).await;
+    for (i, json) in [(0, false), (1, true)] {
+        let (file, answer) = render(busy.base.clone(), format!("there {i}"), json).await;
+        for s in &servers {
+            let stored = bytes(&http, format!("{}{file}", s.base)).await;
+            assert!(stored == answer, "{file} from {} is not the answer", s.base);
+        }
+    }
+    assert_eq!(
+        idle.solves(&http).await,
+        before + 2,
+        "solved by the idle one"
+    );
+    let res = http
+        .delete(format!("{}/api/v1/jobs/{busy_id}", busy.base))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), 204);
 }
 
 #[tokio::test(flavor = "multi_thread")]

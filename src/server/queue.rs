@@ -30,7 +30,7 @@ use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, HashMap};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use tokio::sync::{mpsc, watch, Notify};
 use tokio_util::sync::CancellationToken;
@@ -201,7 +201,15 @@ pub struct Entry {
     stop: AtomicU8,
     /// With a shared database: when the lease was last renewed (ms since the epoch).
     renewed_ms: AtomicU64,
+    /// With a shared database, once this process's solve of the job has written its result:
+    /// the files it wrote (on the solve's entry and on those that followed it), so that a
+    /// synchronous render answers from them rather than read back what was just written
+    /// ([`Entry::written_file`]).
+    written: OnceLock<Files>,
 }
+
+/// A finished job's files as its solve made them: (name, bytes).
+type Files = Arc<[(String, Vec<u8>)]>;
 
 /// A job not yet run: its document (written to the store with the result) and the validated
 /// job. The Cornell box's take about 35 kB of memory, which every finished job used to keep.
@@ -217,6 +225,17 @@ impl Entry {
 
     pub fn subscribe(&self) -> watch::Receiver<JobStatus> {
         self.status.subscribe()
+    }
+
+    /// A file of the job as this process's solve wrote it to the store (with a shared
+    /// database); `None` when this entry has no files: read it from the store
+    /// ([`Queue::file`]).
+    pub fn written_file(&self, name: &str) -> Option<Vec<u8>> {
+        let files = self.written.get()?;
+        files
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, b)| b.clone())
     }
 }
 
@@ -288,7 +307,7 @@ struct Inner {
     idle: Notify,
     /// When the store was last brought under `max_store_bytes` (ms since the epoch).
     last_eviction: AtomicU64,
-    /// An eviction waits for [`EVICTION_GAP_MS`] to pass.
+    /// An eviction is on its way (waiting for [`EVICTION_GAP_MS`] to pass, or about to run).
     eviction_pending: AtomicBool,
 }
 
@@ -444,6 +463,7 @@ impl Queue {
                 pending: Mutex::new(job.map(|job| Pending { document, job })),
                 stop: AtomicU8::new(GO_ON),
                 renewed_ms: AtomicU64::new(0),
+                written: OnceLock::new(),
                 status: watch::channel(status).0,
             });
             if queued {
@@ -510,6 +530,7 @@ impl Queue {
             pending: Mutex::new(Some(Pending { document, job })),
             stop: AtomicU8::new(GO_ON),
             renewed_ms: AtomicU64::new(0),
+            written: OnceLock::new(),
             status: watch::channel(status).0,
         });
         if inner.sender.try_send(entry.clone()).is_err() {
@@ -685,7 +706,7 @@ impl Queue {
         };
         if entry.stop.load(Ordering::SeqCst) != GO_ON || inner.draining.load(Ordering::SeqCst) {
             if inner.shared.is_some() {
-                self.finish_shared(&entry, &document, SHUTDOWN, entry.status(), &[]);
+                self.finish_shared(&entry, &document, SHUTDOWN, entry.status(), [].into());
             }
             return;
         }
@@ -792,21 +813,16 @@ impl Queue {
         }
         let stop = entry.stop.load(Ordering::SeqCst);
         if inner.shared.is_some() {
-            let files: Vec<(String, &[u8])> = files
-                .iter()
-                .map(|(n, b)| (n.clone(), b.as_slice()))
-                .collect();
-            self.finish_shared(&entry, &document, stop, status, &files);
-        } else if stop != CANCEL {
-            let files: Vec<(String, &[u8])> = files
-                .iter()
-                .map(|(n, b)| (n.clone(), b.as_slice()))
-                .collect();
-            self.write(&entry, &document, status.clone(), &files);
-            entry.status.send_replace(status);
-            self.evict();
+            self.finish_shared(&entry, &document, stop, status, files.into());
+        } else {
+            if stop != CANCEL {
+                self.write(&entry, &document, status.clone(), &as_slices(&files));
+                entry.status.send_replace(status);
+                self.evict();
+            }
+            drop(files);
         }
-        drop((files, document, job));
+        drop((document, job));
         release_memory();
         inner.running.fetch_sub(1, Ordering::SeqCst);
         inner.idle.notify_waiters();
@@ -828,35 +844,31 @@ impl Queue {
 
     /// Forgets the oldest finished jobs while the store holds more than `max_store_bytes`
     /// (when it is not 0). They answer as expired ones do: 404, as if never posted.
+    ///
+    /// Never on the caller's thread, which after a job is its worker's: measuring the store is
+    /// a query over every job in PostgreSQL (about 10 ms with a hundred jobs), and run there it
+    /// held the job's followers (a synchronous render's answer) and the worker's next job for
+    /// as long. On a thread of its own instead, one at a time, at most once per
+    /// [`EVICTION_GAP_MS`]: one asked for sooner waits for the gap.
     fn evict(&self) {
-        let max = self.inner.config.max_store_bytes;
-        if max == 0 {
-            return;
-        }
-        // at most once per EVICTION_GAP_MS; one asked for sooner waits for the gap, on a
-        // thread of its own (one at a time)
-        let now = now_ms();
-        let last = self.inner.last_eviction.load(Ordering::SeqCst);
-        if now < last + EVICTION_GAP_MS {
-            if !self.inner.eviction_pending.swap(true, Ordering::SeqCst) {
-                let q = self.clone();
-                let wait = last + EVICTION_GAP_MS - now;
-                std::thread::spawn(move || {
-                    std::thread::sleep(Duration::from_millis(wait));
-                    q.inner.eviction_pending.store(false, Ordering::SeqCst);
-                    q.evict();
-                });
-            }
-            return;
-        }
-        if self
-            .inner
-            .last_eviction
-            .compare_exchange(last, now, Ordering::SeqCst, Ordering::SeqCst)
-            .is_err()
+        if self.inner.config.max_store_bytes == 0
+            || self.inner.eviction_pending.swap(true, Ordering::SeqCst)
         {
             return;
         }
+        let next = self.inner.last_eviction.load(Ordering::SeqCst) + EVICTION_GAP_MS;
+        let wait = next.saturating_sub(now_ms());
+        let q = self.clone();
+        std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(wait));
+            q.inner.last_eviction.store(now_ms(), Ordering::SeqCst);
+            q.inner.eviction_pending.store(false, Ordering::SeqCst);
+            q.evict_now();
+        });
+    }
+
+    fn evict_now(&self) {
+        let max = self.inner.config.max_store_bytes;
         match self.inner.store.evict(max) {
             Ok(ids) if !ids.is_empty() => {
                 let mut entries = self.inner.entries.lock().expect("entries lock");
@@ -899,6 +911,14 @@ impl Queue {
             }
         }
     }
+}
+
+/// Files as the store takes them.
+fn as_slices(files: &[(String, Vec<u8>)]) -> Vec<(String, &[u8])> {
+    files
+        .iter()
+        .map(|(n, b)| (n.clone(), b.as_slice()))
+        .collect()
 }
 
 /// Gives the memory a finished solve freed back to the system.

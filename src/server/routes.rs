@@ -343,6 +343,16 @@ async fn stored(state: &AppState, id: &str, name: &str) -> Result<Vec<u8>, Probl
     }
 }
 
+/// A file of the job that `entry` waited for: as this process's solve wrote it, when it was
+/// solved here with a shared database ([`Entry::written_file`]: not read back), else from the
+/// store.
+async fn answer_file(state: &AppState, entry: &Entry, name: &str) -> Result<Vec<u8>, Problem> {
+    match entry.written_file(name) {
+        Some(bytes) => Ok(bytes),
+        None => stored(state, &entry.id, name).await,
+    }
+}
+
 /// The result JSON of a job.
 #[utoipa::path(get, path = "/api/v1/jobs/{id}/result", tag = "results", params(("id" = String, Path)),
     responses((status = 200, body = super::openapi::ResultDocument),
@@ -544,7 +554,7 @@ pub async fn render_now(
         .is_some_and(prefers_json);
     let location = (header::CONTENT_LOCATION, status.links.this.clone());
     if wants_json {
-        let bytes = stored(&state, &entry.id, "result.json").await?;
+        let bytes = answer_file(&state, &entry, "result.json").await?;
         Ok((
             [
                 (header::CONTENT_TYPE, "application/json".to_string()),
@@ -554,7 +564,7 @@ pub async fn render_now(
         )
             .into_response())
     } else {
-        let bytes = stored(&state, &entry.id, "image.png").await?;
+        let bytes = answer_file(&state, &entry, "image.png").await?;
         let mut res = png(bytes, &HeaderMap::new());
         res.headers_mut().insert(
             location.0,

@@ -10,7 +10,10 @@
 //!   taken it by then: no job is solved by two processes at once.
 //! - **Following**: the status of a job asked from this process is read from the store; while
 //!   someone follows it (SSE, a synchronous render) it is read again every `poll_interval`, and
-//!   at once when a solve of this process ends.
+//!   at once when this process's solve of that job ends. When that solve wrote the job's final
+//!   record, the followers take the status and files it wrote instead of reading them back: a
+//!   synchronous render taken by the process that solves it is answered as soon as the result
+//!   is committed, without two more round trips to the database (the status and the image).
 //! - **Results** are written with [`Store::finish`], only while this process owns the job.
 //! - **Health**: every `poll_interval` the store is asked for its counts of jobs: `readyz`
 //!   answers 503 while that fails, and the queue is full when `queue_capacity` jobs are queued
@@ -19,6 +22,16 @@
 
 use super::*;
 use crate::server::store::{Counts, Inserted};
+use tokio::sync::broadcast;
+
+/// The end of a solve here, for the followers of its job ([`follow`]).
+#[derive(Clone)]
+struct Ended {
+    id: String,
+    /// The final status and the files, when the solve wrote them to the store; `None`: read
+    /// the store.
+    written: Option<(JobStatus, Files)>,
+}
 
 pub(super) struct Shared {
     /// This process, in the store's `owner` column.
@@ -27,8 +40,8 @@ pub(super) struct Shared {
     poll: Duration,
     /// A job was submitted here: look for work now.
     wake: Notify,
-    /// A solve here ended: followers look now.
-    changed: Notify,
+    /// A solve here ended: its job's followers look now.
+    ended: broadcast::Sender<Ended>,
     healthy: AtomicBool,
     counts: Mutex<Counts>,
 }
@@ -49,7 +62,9 @@ impl Shared {
             lease: config.lease,
             poll: config.poll_interval,
             wake: Notify::new(),
-            changed: Notify::new(),
+            // a follower that falls this far behind reads the store instead; a message is
+            // dropped (its files with it) once every follower has seen it
+            ended: broadcast::channel(16).0,
             healthy: AtomicBool::new(true),
             counts: Mutex::new(Counts::default()),
         }
@@ -148,10 +163,14 @@ impl Queue {
             pending: Mutex::new(None),
             stop: AtomicU8::new(GO_ON),
             renewed_ms: AtomicU64::new(0),
+            written: OnceLock::new(),
             status: watch::channel(record.status).0,
         });
         if !final_ {
-            tokio::spawn(follow(self.clone(), entry.clone()));
+            // subscribed now, not when the task first runs: a solve that ends in between is
+            // not missed
+            let ended = self.shared().ended.subscribe();
+            tokio::spawn(follow(self.clone(), entry.clone(), ended));
         }
         entry
     }
@@ -165,10 +184,11 @@ impl Queue {
         document: &Value,
         stop: u8,
         status: JobStatus,
-        files: &[(String, &[u8])],
+        files: Files,
     ) {
         let inner = &self.inner;
         let shared = self.shared();
+        let mut written = None;
         match stop {
             CANCEL | LOST => {
                 tracing::info!(id = %entry.id, "the solve stopped: the job is no longer this process's");
@@ -184,9 +204,14 @@ impl Queue {
                     status: status.clone(),
                 };
                 let deadline = Instant::now() + shared.lease;
+                let slices = as_slices(&files);
                 loop {
-                    match inner.store.finish(&shared.owner, &record, files) {
+                    match inner.store.finish(&shared.owner, &record, &slices) {
                         Ok(true) => {
+                            if status.state.is_final() {
+                                let _ = entry.written.set(files.clone());
+                                written = Some((status.clone(), files));
+                            }
                             entry.status.send_replace(status);
                             self.evict();
                             break;
@@ -212,7 +237,11 @@ impl Queue {
             .lock()
             .expect("entries lock")
             .remove(&entry.id);
-        shared.changed.notify_waiters();
+        // (an error only when nobody follows)
+        let _ = shared.ended.send(Ended {
+            id: entry.id.clone(),
+            written,
+        });
     }
 }
 
@@ -289,6 +318,7 @@ async fn dispatch(queue: Queue, shutdown: CancellationToken) {
             })),
             stop: AtomicU8::new(GO_ON),
             renewed_ms: AtomicU64::new(now_ms()),
+            written: OnceLock::new(),
             status: watch::channel(record.status).0,
         });
         inner
@@ -364,14 +394,30 @@ async fn heartbeat(queue: Queue, shutdown: CancellationToken) {
     }
 }
 
-/// Reads a followed job's status from the store while someone subscribes, until it ends.
-async fn follow(queue: Queue, entry: Arc<Entry>) {
+/// Reads a followed job's status from the store while someone subscribes, until it ends; at
+/// once when a solve of the job here ends, and not at all when that solve wrote the job's
+/// final status (committed before it is sent: whoever sees it can read the result), which is
+/// taken with the files as they were written.
+async fn follow(queue: Queue, entry: Arc<Entry>, mut ended: broadcast::Receiver<Ended>) {
     let shared = queue.shared();
+    let mut next = tokio::time::Instant::now() + shared.poll;
     loop {
         tokio::select! {
-            _ = tokio::time::sleep(shared.poll) => {}
-            _ = shared.changed.notified() => {}
+            _ = tokio::time::sleep_until(next) => {}
+            e = ended.recv() => match e {
+                Ok(e) if e.id != entry.id => continue,
+                Ok(Ended { written: Some((status, files)), .. }) => {
+                    // the files first: whoever sees the status may ask for them
+                    let _ = entry.written.set(files);
+                    entry.status.send_replace(status);
+                    return;
+                }
+                Ok(_) | Err(broadcast::error::RecvError::Lagged(_)) => {}
+                Err(broadcast::error::RecvError::Closed) => return,
+            },
         }
+        // the next look a poll from now (the ends of other jobs, above, leave it as it was)
+        next = tokio::time::Instant::now() + shared.poll;
         if entry.status.receiver_count() == 0 {
             return;
         }
@@ -451,7 +497,6 @@ async fn janitor(queue: Queue, shutdown: CancellationToken) {
             Ok(Err(e)) => tracing::warn!(error = %e, "could not expire old jobs"),
             _ => {}
         }
-        let q = queue.clone();
-        let _ = tokio::task::spawn_blocking(move || q.evict()).await;
+        queue.evict();
     }
 }
