@@ -9,7 +9,7 @@ mod cluster;
 mod listening;
 mod postgres;
 
-use cluster::{bytes, long, owner_pid, post, small, start, status, wait_for};
+use cluster::{bytes, claimer_pid, long, owner_pid, post, small, start, status, wait_for};
 use futures_util::StreamExt;
 use std::collections::{BTreeSet, HashMap};
 use std::time::{Duration, Instant};
@@ -184,14 +184,7 @@ async fn synchronous_renders_answer_what_every_process_serves() {
     let (code, s) = post(&http, &servers[0].base, &long("busy", 512)).await;
     assert_eq!(code, 202);
     let busy_id = s["id"].as_str().unwrap().to_string();
-    let wait = Instant::now();
-    let busy_pid = loop {
-        if let Some(pid) = owner_pid(&db, &busy_id).await {
-            break pid;
-        }
-        assert!(wait.elapsed() < Duration::from_secs(30), "never claimed");
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    };
+    let busy_pid = claimer_pid(&db, &busy_id).await;
     let (busy, idle) = if servers[0].pid() == busy_pid {
         (&servers[0], &servers[1])
     } else {
@@ -230,17 +223,7 @@ async fn sse_and_delete_through_one_process_reach_a_solve_in_another() {
     assert_eq!(code, 202);
     let id = s["id"].as_str().unwrap().to_string();
     // which process solves it
-    let start_wait = Instant::now();
-    let solver_pid = loop {
-        if let Some(pid) = owner_pid(&db, &id).await {
-            break pid;
-        }
-        assert!(
-            start_wait.elapsed() < Duration::from_secs(30),
-            "never claimed"
-        );
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    };
+    let solver_pid = claimer_pid(&db, &id).await;
     let (solver, other) = if servers[0].pid() == solver_pid {
         (&servers[0], &servers[1])
     } else {
@@ -334,14 +317,7 @@ async fn a_killed_process_loses_its_job_to_another_which_finishes_it() {
     let (code, s) = post(&http, &servers[0].base, &long("long kill", 512)).await;
     assert_eq!(code, 202);
     let id = s["id"].as_str().unwrap().to_string();
-    let wait = Instant::now();
-    let solver_pid = loop {
-        if let Some(pid) = owner_pid(&db, &id).await {
-            break pid;
-        }
-        assert!(wait.elapsed() < Duration::from_secs(30), "never claimed");
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    };
+    let solver_pid = claimer_pid(&db, &id).await;
     tokio::time::sleep(Duration::from_millis(300)).await;
     let index = servers.iter().position(|s| s.pid() == solver_pid).unwrap();
     let mut victim = servers.remove(index);

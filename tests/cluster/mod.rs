@@ -196,3 +196,18 @@ pub async fn owner_pid(db: &tokio_postgres::Client, id: &str) -> Option<u32> {
     let owner: Option<String> = row.get(0);
     owner?.split(':').nth(1)?.parse().ok()
 }
+
+/// The process (by pid) that claims the job, waiting for the claim up to 30 s.
+pub async fn claimer_pid(db: &tokio_postgres::Client, id: &str) -> u32 {
+    let wait = std::time::Instant::now();
+    loop {
+        if let Some(pid) = owner_pid(db, id).await {
+            return pid;
+        }
+        assert!(
+            wait.elapsed() < std::time::Duration::from_secs(30),
+            "{id} never claimed"
+        );
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
+}
