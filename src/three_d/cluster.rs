@@ -6,17 +6,21 @@
 //! The hierarchical solver starts from one link of the root cluster to itself instead of a
 //! link for every pair of facing patches, and splits clusters where the oracle asks, down to
 //! the patches' element trees. A link that stays between clusters carries the transfer of
-//! eq. (3) with both ends taken as points, the clusters' centres, and every member keeping its
-//! own orientation (the oriented transfer of Sillion 1995, §4):
+//! eq. (3) from the source's members, each taken as a point at its centroid, to each member
+//! of the receiver at its own centroid, every member keeping its own orientation (the
+//! oriented transfer of Sillion 1995, §4). When every member of the source faces every point
+//! of the receiver ([`Bound::before`]), the source's sum is carried by a few moments (the
+//! irradiance's numerator is affine in the receiving point; [`crate::three_d::hierarchy`]'s
+//! `Emitter`), and the error is second order in the source's size over the distance;
+//! otherwise the source's intensity is taken toward the receiver's centre,
 //!
 //! ```text
 //! I_S(ω)   = Σ_{j ∈ S} B̄_j A_j (n_j · ω)₊ / π          (the radiant intensity of S toward ω)
-//! H_i     += V · I_S(ω) · (n_i · −ω)₊ / r²               (the irradiance of each member i of R)
+//! H_i     += V · I_S(ω) · (n_i · (c_S − x_i))₊ / |c_S − x_i|³   (each member i of R at x_i)
 //! ```
 //!
-//! with ω the unit vector from S's centre to R's, r their distance and V the visible fraction
-//! between the two clusters. It is exact in the limit of small clusters far apart; the oracle
-//! bounds what it leaves out by the clusters' size over their distance.
+//! with V the visible fraction between the two ends, and the error is first order in the
+//! larger end's size. The oracle bounds what each leaves out.
 //!
 //! Two clusters interact only if a point of each may be in front of a member of the other:
 //! each cluster's box, the cone of its members' normals and the range of its points along the
@@ -165,6 +169,21 @@ impl Bound {
         bound > tol
     }
 
+    /// Whether every point of `other` is strictly in front of every surface of `self`: a
+    /// lower bound of n_s · (x_r − x_s) over self's cone, its points x_s and the points x_r of
+    /// other's box is positive. With n_s = a cos α + p sin α, n_s · d ≥ cos θ · a · d − sin θ
+    /// |d| when a · d ≥ 0. Then no member of `self` turns its back on any point of `other`,
+    /// and the light `self` sends there is the affine sum of [`crate::three_d::hierarchy`]'s
+    /// cluster links.
+    pub fn before(&self, other: &Bound) -> bool {
+        if self.cos <= 0.0 {
+            return false;
+        }
+        let m = -other.support(scale(self.axis, -1.0)) - self.slab[1];
+        let tol = 1e-9 * (self.diameter() + other.diameter());
+        m > tol && self.cos * m - self.sin * self.reach(other) > tol
+    }
+
     /// Whether the two sets may exchange light: each may be in front of the other.
     pub fn facing(&self, other: &Bound) -> bool {
         self.front(other) && other.front(self)
@@ -183,6 +202,8 @@ pub struct Cluster {
     pub area: f64,
     /// The area-weighted centroid of its members.
     pub centre: V3,
+    /// The largest diameter of a member.
+    pub member_diameter: f64,
 }
 
 /// The cluster tree of a scene's patches.
@@ -195,6 +216,8 @@ pub struct Clusters {
     prefix: Vec<f64>,
     /// The root of each group's tree: a cluster, or the group's only patch.
     pub roots: Vec<u32>,
+    /// The centroid of every patch.
+    pub centres: Vec<V3>,
 }
 
 /// A member with at least this share of its cluster's diameter and of its area is a child
@@ -222,6 +245,7 @@ impl Clusters {
             order: Vec::new(),
             prefix: vec![0.0],
             roots: Vec::new(),
+            centres: Vec::new(),
         };
         let mut order = Vec::new();
         for group in groups {
@@ -236,6 +260,7 @@ impl Clusters {
             tree.prefix.push(sum);
         }
         tree.order = order;
+        tree.centres = centres;
         tree
     }
 
@@ -257,6 +282,12 @@ impl Clusters {
             }),
             1.0 / area,
         );
+        // the largest member, split off alone when it is half the box and half the area
+        let (big, size) = members
+            .iter()
+            .enumerate()
+            .map(|(k, &m)| (k, quads[m as usize].diameter()))
+            .fold((0, 0.0), |b, x| if x.1 > b.1 { x } else { b });
         let me = self.nodes.len();
         self.nodes.push(Cluster {
             bound,
@@ -264,13 +295,8 @@ impl Clusters {
             children: [0; 2],
             area,
             centre,
+            member_diameter: size,
         });
-        // the largest member, split off alone when it is half the box and half the area
-        let (big, size) = members
-            .iter()
-            .enumerate()
-            .map(|(k, &m)| (k, quads[m as usize].diameter()))
-            .fold((0, 0.0), |b, x| if x.1 > b.1 { x } else { b });
         let dominant = quads[members[big] as usize].area >= PEEL * area;
         let half = if size >= PEEL * bound.diameter() && dominant {
             members.swap(0, big);
@@ -387,6 +413,37 @@ mod tests {
         assert!(b(&floor).facing(&b(&ceiling)));
         assert!(!b(&floor).facing(&b(&roof)));
         assert!(b(&floor).front(&b(&roof)) && !b(&roof).front(&b(&floor)));
+    }
+
+    /// A square is wholly in front of another that faces it across a gap, not of one that
+    /// stands on its edge (its foot is in the first's plane), nor of one beside it in its
+    /// plane; a cluster of a roof's two slopes is wholly in front of a point high above it,
+    /// not of one low beside it that one slope turns its back on.
+    #[test]
+    fn wholly_in_front() {
+        let square = |o: V3, u: V3, v: V3| {
+            let q = Parallelogram::new(&[o, add(o, u), add(add(o, u), v), add(o, v)]);
+            Bound::of_patches(std::slice::from_ref(&q), &[0])
+        };
+        let (x, y, z) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+        let floor = square([0.0; 3], x, y);
+        let ceiling = square([0.0, 1.0, 1.0], x, scale(y, -1.0));
+        let wall = square([0.0, 1.0, 0.0], x, z);
+        let beside = square([1.0, 0.0, 0.0], x, y);
+        assert!(floor.before(&ceiling) && ceiling.before(&floor));
+        assert!(!floor.before(&wall));
+        assert!(!floor.before(&beside));
+        let slope =
+            |o: V3, u: V3, v: V3| Parallelogram::new(&[o, add(o, u), add(add(o, u), v), add(o, v)]);
+        let roof = [
+            slope([0.0, 0.0, 0.0], [1.0, 0.0, 0.3], y),
+            slope([-1.0, 0.0, 0.3], [1.0, 0.0, -0.3], y),
+        ];
+        let both = Bound::of_patches(&roof, &[0, 1]);
+        let high = square([0.0, 0.0, 5.0], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0]);
+        let low = square([3.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0]);
+        assert!(both.before(&high));
+        assert!(!both.before(&low));
     }
 
     /// Every patch is in the tree once, and each cluster's box, cone, slab and area hold its

@@ -236,17 +236,15 @@ impl<'g> Hierarchy<'g> {
     /// Whether an accepted pair now carries more than the threshold allows (its source
     /// brightened or turned out uneven) and can still be refined.
     fn outgrown(&self, r: u32, s: u32, x: Factors) -> bool {
-        let (er, es) = (&self.elements[r as usize], &self.elements[s as usize]);
         let (kernel, detail) = self.error(r, s, x);
-        let can = er.level < self.finest(r) || es.level < self.finest(s);
         // the oracle's share for a receiver along a contact line ([`refine::CONTACT_SHARE`])
-        let contact = er.level < self.finest(r) && x.contact;
+        let contact = self.splittable(r) && x.contact;
         let limit = if contact {
             refine::CONTACT_SHARE * self.tolerance(r)
         } else {
             self.tolerance(r)
         };
-        can && kernel + detail > limit
+        self.splits(r, s, kernel, detail, limit).is_some()
     }
 
     /// Sets every element's `detail` from the leaves' B; returns Σ over the leaves below
@@ -734,7 +732,8 @@ pub fn solve(
         .collect();
     sorted.par_sort_unstable_by(|a, b| b.total_cmp(a));
     // Σ‖block‖² per pair of surfaces, for eq. (5) by Parseval over the link blocks
-    // (none on a scene with triangles, where eq. (5) is not measured)
+    // (none on a scene with triangles, where eq. (5) is not measured; only meshes, all of
+    // triangles, have clusters, so every link here is between elements)
     let surfaces = h.quads.len();
     let with_triangles = h.geo.quads.iter().any(|q| q.tri);
     let mut kept_squares = vec![
@@ -749,25 +748,6 @@ pub fn solve(
         let (r, s) = (&h.elements[l.recv as usize], &h.elements[l.src as usize]);
         kept_squares[r.piece.surface * surfaces + s.piece.surface] +=
             l.block.iter().map(|v| v * v).sum::<f64>();
-    }
-    // a cluster link's kernel is one value on each pair of members it joins,
-    // V (n_i · −ω)₊ (n_j · ω)₊ / (π r²), whose block is that value times √(A_i A_j)
-    if !with_triangles {
-        for l in &h.cluster_links {
-            let mut sources = Vec::new();
-            h.for_members(l.src, |e, a, n| sources.push((e, a, n)));
-            h.for_members(l.recv, |e, a, n| {
-                let ci = -crate::three_d::geometry::dot(n, l.dir);
-                let r = h.elements[e as usize].piece.surface;
-                for &(f, b, m) in sources.iter().filter(|_| ci > 0.0) {
-                    let cj = crate::three_d::geometry::dot(m, l.dir);
-                    if cj > 0.0 {
-                        let s = h.elements[f as usize].piece.surface;
-                        kept_squares[r * surfaces + s] += (l.gain * ci * cj).powi(2) * a * b;
-                    }
-                }
-            });
-        }
     }
     let magnitudes = crate::methods::compress::sample_ranks(sorted.len(), job.output.coefficients)
         .into_iter()

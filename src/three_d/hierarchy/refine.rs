@@ -23,7 +23,8 @@
 //! low). When err is above ε times the brightest emission (less on a dim receiver surface,
 //! [`DIM_KNEE`]), an element is split (down to the
 //! finest level allowed: the source when D_S is most of the error, else the larger, except that
-//! a receiver coarser than [`receiver_first`] goes first) and its children are linked instead;
+//! a receiver coarser than [`receiver_first`] goes first, and only where the split lowers the
+//! estimate: `Hierarchy::splits`) and its children are linked instead;
 //! otherwise the pair becomes a link whose k² × k² block is integrated by [`crate::three_d::transfer`]
 //! and scaled by the visible fraction.
 
@@ -369,6 +370,34 @@ impl Hierarchy<'_> {
         self.elements[e as usize].level < self.finest(e)
     }
 
+    /// Whether a pair whose estimate is (`kernel`, `detail`) against the tolerance `limit`
+    /// is split, and on which side (true: the source). A split is made only where it lowers
+    /// the estimate. Splitting the receiver always may (its polynomial gets finer). Splitting
+    /// the source lowers the detail part (its children read B finer), but the kernel part
+    /// only while the source is the larger piece: the estimate's size factor is the larger
+    /// diameter, and its children's F̂ add up to the parent's. So once the receiver is at its
+    /// finest level and the source is no larger, a pair whose error is the kernel's is
+    /// linked at the error that `min_element_size` allows: splitting the source would turn
+    /// one link into four with the same error at the receiver, and at a contact line, where
+    /// F̂ does not fall as pieces shrink, into as many links as there are elements near it.
+    pub(super) fn splits(
+        &self,
+        r: u32,
+        s: u32,
+        kernel: f64,
+        detail: f64,
+        limit: f64,
+    ) -> Option<bool> {
+        if kernel + detail <= limit {
+            return None;
+        }
+        if self.splittable(r) {
+            return Some(detail > kernel);
+        }
+        let larger = self.elements[s as usize].area > self.elements[r as usize].area;
+        (self.splittable(s) && (larger || detail > kernel)).then_some(true)
+    }
+
     /// The oracle's estimate of the error of a link from `s` to `r`, in two parts: what the
     /// kernel's variation over the pair costs (B̄_S carried by a transfer that a polynomial
     /// of order m on the pair misses), and what the source's own variation below its level
@@ -396,12 +425,10 @@ impl Hierarchy<'_> {
             return (Verdict::Inert, 0);
         }
         let thr = self.tolerance(r);
-        let can = self.splittable(r) || self.splittable(s);
         let split = |x: Factors| {
             let (kernel, detail) = self.error(r, s, x);
-            (can && kernel + detail > thr).then_some(Verdict::Split {
-                source: detail > kernel,
-            })
+            self.splits(r, s, kernel, detail, thr)
+                .map(|source| Verdict::Split { source })
         };
         let unsure = Factors {
             f,
@@ -588,8 +615,8 @@ impl Hierarchy<'_> {
                     ClusterVerdict::Link(g) => self.cluster_links.push(ClusterLink {
                         recv: r,
                         src: s,
-                        dir: g.dir,
-                        gain: g.gain,
+                        visibility: g.visibility,
+                        affine: g.affine,
                         smooth: g.smooth,
                     }),
                     ClusterVerdict::Hidden => self.hidden_clusters.push((r, s)),
@@ -710,5 +737,57 @@ pub fn peak_emission(quad: &crate::scene::Quad, piece: Piece) -> f64 {
         quad.material.emission.iter().copied().fold(0.0, f64::max)
     } else {
         0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{parse_value, Limits, SceneKind};
+    use crate::three_d::hierarchy::sizing::Sizing;
+    use crate::three_d::projection::Geometry;
+
+    /// A small square (one element at its finest level: its edge is under twice the smallest
+    /// element size) facing a long strip (finest level 3) across a gap: the oracle splits
+    /// the strip while it is the larger piece, and stops where its elements are no larger
+    /// than the receiver, though they could still be split, unless the source's own detail
+    /// is most of the error; a receiver that can still be split always can be.
+    #[test]
+    fn a_split_is_made_only_where_it_lowers_the_estimate() {
+        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "small", "corners": [[0, 0, 1], [0, 1.9, 1], [1.9, 1.9, 1], [1.9, 0, 1]],
+             "reflectance": 0.5},
+            {"name": "strip", "corners": [[-4, -1, 0], [4, -1, 0], [4, 1, 0], [-4, 1, 0]],
+             "reflectance": 0.5, "emission": 1.0}
+        ]}});
+        let job = parse_value(&doc, &Limits::default()).unwrap();
+        let SceneKind::ThreeD(quads) = &job.scene.kind else {
+            unreachable!()
+        };
+        let geo = Geometry::new(quads);
+        let sizing = Sizing::new(&geo.quads, Some(1.0), None);
+        let mut h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
+        let (small, mut strip) = (0u32, 1u32);
+        assert_eq!((h.finest(small), h.finest(strip)), (0, 3));
+        // over the limit, the error the kernel's: the larger source is split (16, then 4
+        // square units against the receiver's 3.61), and its elements of level 2 (2 × ½)
+        // are not, though they could be
+        for level in 0..2 {
+            assert_eq!(
+                h.splits(small, strip, 1.0, 0.0, 0.1),
+                Some(true),
+                "level {level}"
+            );
+            strip = h.split(strip);
+        }
+        assert!((h.elements[strip as usize].area - 1.0).abs() < 1e-12);
+        assert!(h.splittable(strip));
+        assert_eq!(h.splits(small, strip, 1.0, 0.0, 0.1), None);
+        // a finer source would read B finer: split it when that is most of the error
+        let first = h.split(1);
+        assert_eq!(h.splits(small, first, 0.2, 0.9, 0.1), Some(true));
+        // under the limit, nothing; over it, a receiver that can be split is
+        assert_eq!(h.splits(first, small, 0.01, 0.0, 0.1), None);
+        assert_eq!(h.splits(first, small, 1.0, 0.0, 0.1), Some(false));
     }
 }
