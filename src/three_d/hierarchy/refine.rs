@@ -747,6 +747,72 @@ mod tests {
     use crate::three_d::hierarchy::sizing::Sizing;
     use crate::three_d::projection::Geometry;
 
+    /// A closed unit cube of six faces facing in, its ceiling (index 1) emitting.
+    fn cube() -> crate::scene::Job {
+        let face = |name: &str, c: [[f64; 3]; 4], e: f64| serde_json::json!({"name": name, "corners": c, "reflectance": 0.5, "emission": e});
+        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            face("floor", [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]], 0.0),
+            face("ceiling", [[0., 0., 1.], [0., 1., 1.], [1., 1., 1.], [1., 0., 1.]], 1.0),
+            face("south", [[0., 0., 0.], [0., 0., 1.], [1., 0., 1.], [1., 0., 0.]], 0.0),
+            face("north", [[0., 1., 0.], [1., 1., 0.], [1., 1., 1.], [0., 1., 1.]], 0.0),
+            face("west", [[0., 0., 0.], [0., 1., 0.], [0., 1., 1.], [0., 0., 1.]], 0.0),
+            face("east", [[1., 0., 0.], [1., 0., 1.], [1., 1., 1.], [1., 1., 0.]], 0.0),
+        ]}});
+        parse_value(&doc, &Limits::default()).unwrap()
+    }
+
+    /// w_R counts the surfaces that emit nothing and face the receiver's: in a closed cube
+    /// with an emitting ceiling, the floor and each wall see four of them (not themselves,
+    /// not the ceiling), the ceiling five.
+    #[test]
+    fn the_indirect_weight_counts_the_dark_surfaces_facing_the_receiver() {
+        let job = cube();
+        let SceneKind::ThreeD(quads) = &job.scene.kind else {
+            unreachable!()
+        };
+        let geo = Geometry::new(quads);
+        let h = Hierarchy::new(&geo, quads, 1, Sizing::new(&geo.quads, None, None), 1e-3);
+        assert_eq!(h.indirect, vec![4.0, 5.0, 4.0, 4.0, 4.0, 4.0]);
+    }
+
+    /// The tolerance is ε times the brightest emission; after a solve, a surface whose mean B
+    /// is below [`DIM_KNEE`] of the typical gets the cube of the ratio of it, down to
+    /// [`DIM_SHARE`].
+    #[test]
+    fn a_dim_surface_gets_a_share_of_the_tolerance() {
+        let job = cube();
+        let SceneKind::ThreeD(quads) = &job.scene.kind else {
+            unreachable!()
+        };
+        let geo = Geometry::new(quads);
+        let mut h = Hierarchy::new(&geo, quads, 1, Sizing::new(&geo.quads, None, None), 1e-3);
+        assert_eq!(h.tolerance(0), 1e-3);
+        // the floor at B = ½ and the walls at 2: typical (½ + 4 · 2) / 5 = 1.7
+        let set = |h: &mut Hierarchy, i: usize, b: f64| {
+            let a = h.elements[i].area;
+            h.elements[i].b[0] = [b * a.sqrt(); 3];
+        };
+        set(&mut h, 0, 0.5);
+        (2..6).for_each(|i| set(&mut h, i, 2.0));
+        h.typical = h.typical_radiosity();
+        assert!((h.typical - 1.7).abs() < 1e-12);
+        let expect = 1e-3 * (0.5 / (DIM_KNEE * 1.7f64)).powi(3);
+        assert!(expect < 1e-3 && expect > 1e-3 * DIM_SHARE);
+        assert!((h.tolerance(0) - expect).abs() < 1e-15);
+        assert_eq!(h.tolerance(2), 1e-3);
+        set(&mut h, 0, 0.01);
+        h.typical = h.typical_radiosity();
+        assert_eq!(h.tolerance(0), 1e-3 * DIM_SHARE);
+    }
+
+    /// Receivers coarser than an 8 × 8 split of their surface at order 0, 4 × 4 at orders 1
+    /// and 2 and 2 × 2 from order 3 are split before their sources.
+    #[test]
+    fn receivers_first_down_to_a_level_set_by_the_order() {
+        let levels: Vec<u32> = (0..5).map(receiver_first).collect();
+        assert_eq!(levels, vec![3, 2, 2, 1, 1]);
+    }
+
     /// A small square (one element at its finest level: its edge is under twice the smallest
     /// element size) facing a long strip (finest level 3) across a gap: the oracle splits
     /// the strip while it is the larger piece, and stops where its elements are no larger
