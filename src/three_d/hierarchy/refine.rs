@@ -761,6 +761,59 @@ mod tests {
         parse_value(&doc, &Limits::default()).unwrap()
     }
 
+    /// A floor with a wall standing on it (its foot a line at a quarter of the floor) and a
+    /// light above both: the floor's root element is at that contact line, and the wall may
+    /// come between it and the light, so with an estimate between [`CONTACT_SHARE`] of the
+    /// tolerance and the tolerance it is split on its side before any ray; with one under
+    /// that share it is not. The floor's half beyond the line is not at it.
+    #[test]
+    fn a_receiver_at_a_contact_line_gets_a_share_of_the_tolerance() {
+        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "floor", "corners": [[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0]],
+             "reflectance": 0.5},
+            {"name": "wall", "corners": [[1, 1, 0], [1, 3, 0], [1, 3, 2], [1, 1, 2]],
+             "reflectance": 0.5},
+            {"name": "light", "corners": [[0, 0, 3], [0, 4, 3], [4, 4, 3], [4, 0, 3]],
+             "reflectance": 0.0, "emission": 1.0}
+        ]}});
+        let job = parse_value(&doc, &Limits::default()).unwrap();
+        let SceneKind::ThreeD(quads) = &job.scene.kind else {
+            unreachable!()
+        };
+        let geo = Geometry::new(quads);
+        let mut h = Hierarchy::new(
+            &geo,
+            quads,
+            1,
+            Sizing::new(&geo.quads, Some(0.5), None),
+            1e-3,
+        );
+        let (floor, light) = (0u32, 2u32);
+        assert!(h.at_contact(floor) && h.splittable(floor));
+        let estimate = h.estimate(floor, light);
+        let contact = Factors {
+            f: estimate.0,
+            smooth: 1.0,
+            contact: true,
+        };
+        let (kernel, detail) = h.error(floor, light, contact);
+        assert!(kernel > 0.0);
+        h.threshold = (kernel + detail) / (0.5 + 0.5 * CONTACT_SHARE);
+        let (verdict, rays) = h.judge(floor, light, estimate);
+        assert!(
+            matches!(verdict, Verdict::Split { source: false }),
+            "{verdict:?}"
+        );
+        assert_eq!(rays, 0);
+        h.threshold = (kernel + detail) / (0.5 * CONTACT_SHARE);
+        let (verdict, _) = h.judge(floor, light, estimate);
+        assert!(!matches!(verdict, Verdict::Split { .. }), "{verdict:?}");
+        // the floor's children beyond the line (s > ½) are not at it
+        let first = h.split(floor);
+        let beyond: Vec<bool> = (0..4).map(|i| h.at_contact(first + i)).collect();
+        assert_eq!(beyond, vec![true, false, true, false]);
+    }
+
     /// w_R counts the surfaces that emit nothing and face the receiver's: in a closed cube
     /// with an emitting ceiling, the floor and each wall see four of them (not themselves,
     /// not the ceiling), the ceiling five.
