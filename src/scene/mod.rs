@@ -295,7 +295,7 @@ pub struct Solver {
     pub quadrature: usize,
     pub epsilon: f64,
     /// The hierarchical method's smallest element edge in scene units; `None`: chosen from the
-    /// scene's size ([`crate::three_d::hierarchy::Sizing`]).
+    /// scene's size ([`crate::three_d::hierarchy::sizing::Sizing`]).
     pub min_element_size: Option<f64>,
 }
 
