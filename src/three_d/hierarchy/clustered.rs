@@ -68,12 +68,12 @@ pub struct ClusterLink {
 /// expansion in y_j − c cancel, leaves an error second order in the source's size over the
 /// distance, whatever the source's shape and the variation of B over it.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct Emitter {
-    pub normal: [V3; 3],
-    pub offset: Rgb,
+struct Emitter {
+    normal: [V3; 3],
+    offset: Rgb,
     /// Q's rows, per channel.
-    pub spread: [[V3; 3]; 3],
-    pub lever: [V3; 3],
+    spread: [[V3; 3]; 3],
+    lever: [V3; 3],
 }
 
 impl Emitter {
@@ -180,6 +180,15 @@ impl Hierarchy<'_> {
         }
     }
 
+    /// The centroid of a cluster or an element.
+    fn centre_of(&self, id: u32) -> V3 {
+        if is_cluster(id) {
+            self.clusters.get(id).centre
+        } else {
+            self.element_centre(id)
+        }
+    }
+
     /// The centroid of an element.
     fn element_centre(&self, e: u32) -> V3 {
         let el = &self.elements[e as usize];
@@ -207,7 +216,7 @@ impl Hierarchy<'_> {
     }
 
     /// The [`Emitter`] of every cluster from the members' B, children before parents.
-    pub(super) fn emitters(&self) -> Vec<Emitter> {
+    fn emitters(&self) -> Vec<Emitter> {
         let tree = &self.clusters;
         let mut out = vec![Emitter::default(); tree.nodes.len()];
         for i in (0..tree.nodes.len()).rev() {
@@ -301,11 +310,19 @@ impl Hierarchy<'_> {
     /// tolerance allows, with the factor `smooth` it was accepted with.
     pub(super) fn cluster_outgrown(&self, r: u32, s: u32, smooth: f64) -> bool {
         let (er, es) = (self.end(r), self.end(s));
-        if !(is_cluster(r) || self.splittable(r) || es.bound.diameter() > er.bound.diameter()) {
+        if !self.split_lowers(r, er.bound.diameter(), es.bound.diameter()) {
             return false;
         }
         let (sr, ss) = (self.state(r), self.state(s));
         self.cluster_error(&sr, &ss, er.bound.distance(&es.bound), smooth) > sr.tolerance
+    }
+
+    /// Whether splitting a pair with a cluster at an end, receiver `r` of diameter `dr` and a
+    /// source of diameter `ds`, may lower its estimate: the estimate's size factor is the
+    /// larger end's, which a receiver at its finest level keeps when the source is no larger
+    /// (as for pairs of elements, `Hierarchy::splits`).
+    fn split_lowers(&self, r: u32, dr: f64, ds: f64) -> bool {
+        is_cluster(r) || self.splittable(r) || ds > dr
     }
 
     /// The verdict on a pair with a cluster at an end; read-only, so that a frontier of pairs
@@ -347,11 +364,9 @@ impl Hierarchy<'_> {
         } else {
             size / (size + dist)
         };
-        // as for pairs of elements ([`Hierarchy::splits`]), a split is made only where it
-        // lowers the estimate: its size factor is the larger end's, which a receiver at its
-        // finest level keeps when the source is no larger (ends closer than
-        // [`SEPARATION`] are split regardless: there the ends are not points)
-        let lowers = is_cluster(r) || self.splittable(r) || ds > dr;
+        // a split only where it lowers the estimate (ends closer than [`SEPARATION`] are
+        // split regardless: there the ends are not points)
+        let lowers = self.split_lowers(r, dr, ds);
         if dist < SEPARATION * size
             || (lowers && self.cluster_error(&sr, &ss, dist, smooth) > sr.tolerance)
         {
@@ -443,14 +458,9 @@ impl Hierarchy<'_> {
 
     /// The constant H (as h₀ = H √A) that cluster link `l` delivers to each member of its
     /// receiver, each at its own centroid, into `out` (one slot per member, in their order).
-    pub(super) fn cluster_link_irradiance(
-        &self,
-        l: &ClusterLink,
-        emitters: &[Emitter],
-        out: &mut [Rgb],
-    ) {
+    fn cluster_link_irradiance(&self, l: &ClusterLink, emitters: &[Emitter], out: &mut [Rgb]) {
         let v = l.visibility;
-        let centre = self.end(l.src).centre;
+        let centre = self.centre_of(l.src);
         let mut slots = out.iter_mut();
         let mut put = |h: Rgb| {
             if let Some(slot) = slots.next() {
@@ -467,7 +477,7 @@ impl Hierarchy<'_> {
             return;
         }
         // the source's intensity toward the receiver's centre, Σ B̄ A (n · ω)₊ / π
-        let toward = sub(self.end(l.recv).centre, centre);
+        let toward = sub(self.centre_of(l.recv), centre);
         let omega = scale(toward, 1.0 / norm(toward));
         let mut intensity = [0.0; 3];
         self.for_members(l.src, |e, area, _, n| {
@@ -494,7 +504,7 @@ impl Hierarchy<'_> {
     }
 
     /// How many members receive through a link into `id`.
-    pub(super) fn member_count(&self, id: u32) -> usize {
+    fn member_count(&self, id: u32) -> usize {
         if is_cluster(id) {
             self.clusters.members(id).len()
         } else {

@@ -747,8 +747,16 @@ mod tests {
     use crate::three_d::hierarchy::sizing::Sizing;
     use crate::three_d::projection::Geometry;
 
+    /// The patches of a 3D document.
+    fn patches(doc: serde_json::Value) -> Vec<crate::scene::Quad> {
+        match parse_value(&doc, &Limits::default()).unwrap().scene.kind {
+            SceneKind::ThreeD(scene) => scene.patches,
+            _ => unreachable!(),
+        }
+    }
+
     /// A closed unit cube of six faces facing in, its ceiling (index 1) emitting.
-    fn cube() -> crate::scene::Job {
+    fn cube() -> Vec<crate::scene::Quad> {
         let face = |name: &str, c: [[f64; 3]; 4], e: f64| serde_json::json!({"name": name, "corners": c, "reflectance": 0.5, "emission": e});
         let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
             face("floor", [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]], 0.0),
@@ -758,7 +766,7 @@ mod tests {
             face("west", [[0., 0., 0.], [0., 1., 0.], [0., 1., 1.], [0., 0., 1.]], 0.0),
             face("east", [[1., 0., 0.], [1., 0., 1.], [1., 1., 1.], [1., 1., 0.]], 0.0),
         ]}});
-        parse_value(&doc, &Limits::default()).unwrap()
+        patches(doc)
     }
 
     /// A floor with a wall standing on it (its foot a line at a quarter of the floor) and a
@@ -776,10 +784,7 @@ mod tests {
             {"name": "light", "corners": [[0, 0, 3], [0, 4, 3], [4, 4, 3], [4, 0, 3]],
              "reflectance": 0.0, "emission": 1.0}
         ]}});
-        let job = parse_value(&doc, &Limits::default()).unwrap();
-        let SceneKind::ThreeD(quads) = &job.scene.kind else {
-            unreachable!()
-        };
+        let quads = &patches(doc);
         let geo = Geometry::new(quads);
         let mut h = Hierarchy::new(
             &geo,
@@ -819,10 +824,7 @@ mod tests {
     /// not the ceiling), the ceiling five.
     #[test]
     fn the_indirect_weight_counts_the_dark_surfaces_facing_the_receiver() {
-        let job = cube();
-        let SceneKind::ThreeD(quads) = &job.scene.kind else {
-            unreachable!()
-        };
+        let quads = &cube();
         let geo = Geometry::new(quads);
         let h = Hierarchy::new(&geo, quads, 1, Sizing::new(&geo.quads, None, None), 1e-3);
         assert_eq!(h.indirect, vec![4.0, 5.0, 4.0, 4.0, 4.0, 4.0]);
@@ -833,10 +835,7 @@ mod tests {
     /// [`DIM_SHARE`].
     #[test]
     fn a_dim_surface_gets_a_share_of_the_tolerance() {
-        let job = cube();
-        let SceneKind::ThreeD(quads) = &job.scene.kind else {
-            unreachable!()
-        };
+        let quads = &cube();
         let geo = Geometry::new(quads);
         let mut h = Hierarchy::new(&geo, quads, 1, Sizing::new(&geo.quads, None, None), 1e-3);
         assert_eq!(h.tolerance(0), 1e-3);
@@ -879,10 +878,7 @@ mod tests {
             {"name": "strip", "corners": [[-4, -1, 0], [4, -1, 0], [4, 1, 0], [-4, 1, 0]],
              "reflectance": 0.5, "emission": 1.0}
         ]}});
-        let job = parse_value(&doc, &Limits::default()).unwrap();
-        let SceneKind::ThreeD(quads) = &job.scene.kind else {
-            unreachable!()
-        };
+        let quads = &patches(doc);
         let geo = Geometry::new(quads);
         let sizing = Sizing::new(&geo.quads, Some(1.0), None);
         let mut h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
