@@ -17,7 +17,11 @@
 //! Σ A_j E_j / (π dist²) bounds the irradiance that S can give any point at distance dist
 //! (every cosine ≤ 1), and no point receives more than the brightest member gives (a form
 //! factor is at most 1). A partly visible pair has σ = 1, as the element links' oracle does
-//! ([`super::refine`]), with the same weights w_R and tolerances (with w_R = 1 the Cornell box
+//! ([`super::refine`]), unless its receiver is an element at its finest level: that receives
+//! the link's mean, which is wrong by the sampling error of the visible fraction V from n rays
+//! and by V's correlation with the kernel over the pair, so σ = d / (d + dist) + √(V(1 − V)/n),
+//! and splitting the source lowers only the first term (the second adds up over its parts).
+//! The weights w_R and tolerances are those of the element links' oracle (with w_R = 1 the Cornell box
 //! made of meshes came out 1 % dark on its ceiling). When err is above the tolerance, the end
 //! with the larger box is split: a cluster into its two children, an element into its four; a
 //! cluster linked to itself into the four pairs of its children; but a source no larger than
@@ -53,9 +57,13 @@ pub struct ClusterLink {
     /// sends is then the affine form of [`Emitter`], else its intensity toward the
     /// receiver's centre.
     pub affine: bool,
-    /// The oracle's factor for what taking the ends as points leaves out, or 1 when partly
-    /// visible.
+    /// The oracle's factor for what taking the ends as points leaves out; when partly
+    /// visible, 1, or for a receiver at its finest level the factor with the sampling error
+    /// of V added.
     pub smooth: f64,
+    /// The part of `smooth` that is the sampling error of `visibility` (see
+    /// [`Hierarchy::split_lowers`]).
+    pub sampled: f64,
 }
 
 /// What a source sends through its cluster links, per channel, summed over its members j
@@ -148,6 +156,7 @@ pub(super) struct ClusterLinkGeometry {
     pub visibility: f64,
     pub affine: bool,
     pub smooth: f64,
+    pub sampled: f64,
 }
 
 /// The shape of one end of a link: its bound, centre and the largest diameter of a member.
@@ -308,9 +317,9 @@ impl Hierarchy<'_> {
 
     /// Whether a cluster link (or hidden cluster pair) now carries more than its receiver's
     /// tolerance allows, with the factor `smooth` it was accepted with.
-    pub(super) fn cluster_outgrown(&self, r: u32, s: u32, smooth: f64) -> bool {
+    pub(super) fn cluster_outgrown(&self, r: u32, s: u32, smooth: f64, sampled: f64) -> bool {
         let (er, es) = (self.end(r), self.end(s));
-        if !self.split_lowers(r, er.bound.diameter(), es.bound.diameter()) {
+        if !self.split_lowers(r, er.bound.diameter(), es.bound.diameter(), smooth, sampled) {
             return false;
         }
         let (sr, ss) = (self.state(r), self.state(s));
@@ -318,11 +327,13 @@ impl Hierarchy<'_> {
     }
 
     /// Whether splitting a pair with a cluster at an end, receiver `r` of diameter `dr` and a
-    /// source of diameter `ds`, may lower its estimate: the estimate's size factor is the
-    /// larger end's, which a receiver at its finest level keeps when the source is no larger
-    /// (as for pairs of elements, `Hierarchy::splits`).
-    fn split_lowers(&self, r: u32, dr: f64, ds: f64) -> bool {
-        is_cluster(r) || self.splittable(r) || ds > dr
+    /// source of diameter `ds`, may lower its estimate `smooth`, of which `sampled` is the
+    /// sampling error of the visible fraction: the estimate's size factor is the larger end's,
+    /// which a receiver at its finest level keeps when the source is no larger (as for pairs
+    /// of elements, `Hierarchy::splits`); and the sampling error adds up over the source's
+    /// parts, so splitting the source lowers only the rest.
+    fn split_lowers(&self, r: u32, dr: f64, ds: f64, smooth: f64, sampled: f64) -> bool {
+        is_cluster(r) || self.splittable(r) || (ds > dr && smooth - sampled > sampled)
     }
 
     /// The verdict on a pair with a cluster at an end; read-only, so that a frontier of pairs
@@ -346,9 +357,9 @@ impl Hierarchy<'_> {
         let dist = er.bound.distance(&es.bound);
         let (dr, ds) = (er.bound.diameter(), es.bound.diameter());
         let size = dr.max(ds);
+        let can = |id: u32| is_cluster(id) || self.splittable(id);
         let split = || {
             // the end with the larger box, unless it is an element at its finest level
-            let can = |id: u32| is_cluster(id) || self.splittable(id);
             if (dr >= ds && can(r)) || !can(s) {
                 ClusterVerdict::Receiver
             } else {
@@ -366,15 +377,27 @@ impl Hierarchy<'_> {
         };
         // a split only where it lowers the estimate (ends closer than [`SEPARATION`] are
         // split regardless: there the ends are not points)
-        let lowers = self.split_lowers(r, dr, ds);
+        let lowers = self.split_lowers(r, dr, ds, smooth, 0.0);
         if dist < SEPARATION * size
             || (lowers && self.cluster_error(&sr, &ss, dist, smooth) > sr.tolerance)
         {
             return (split(), 0);
         }
         let seed = pair_seed(self.cluster_identity(r), self.cluster_identity(s));
-        let (v, rays) = self.cluster_visibility(r, s, seed);
-        let smooth = if v < 1.0 { 1.0 } else { smooth };
+        let (v, valid, rays) = self.cluster_visibility(r, s, seed);
+        // partly visible: a receiver that can be split gets no smoothness credit (a shadow
+        // edge is not what its members' constants can follow). One at its finest level
+        // receives the link's mean, which is wrong by the sampling error of V and by V's
+        // correlation with the kernel over the pair, first order in the larger end's size
+        let (smooth, sampled) = if v >= 1.0 {
+            (smooth, 0.0)
+        } else if can(r) {
+            (1.0, 0.0)
+        } else {
+            let sampled = (v * (1.0 - v) / valid as f64).sqrt();
+            ((size / (size + dist) + sampled).min(1.0), sampled)
+        };
+        let lowers = self.split_lowers(r, dr, ds, smooth, sampled);
         if v < 1.0 && lowers && self.cluster_error(&sr, &ss, dist, smooth) > sr.tolerance {
             return (split(), rays);
         }
@@ -389,6 +412,7 @@ impl Hierarchy<'_> {
                 visibility: v,
                 affine,
                 smooth,
+                sampled,
             }),
             rays,
         )
@@ -433,7 +457,7 @@ impl Hierarchy<'_> {
 
     /// The visible fraction between two ends: of [`CLUSTER_RAYS`] pairs of points, those
     /// that face each other, the share with nothing between them (1 when none face).
-    fn cluster_visibility(&self, r: u32, s: u32, seed: u64) -> (f64, u64) {
+    fn cluster_visibility(&self, r: u32, s: u32, seed: u64) -> (f64, usize, u64) {
         let mut rng = SplitMix(seed);
         let (mut open, mut valid, mut rays) = (0usize, 0usize, 0u64);
         for _ in 0..CLUSTER_RAYS {
@@ -450,9 +474,9 @@ impl Hierarchy<'_> {
             }
         }
         if valid == 0 {
-            (1.0, rays)
+            (1.0, 0, rays)
         } else {
-            (open as f64 / valid as f64, rays)
+            (open as f64 / valid as f64, valid, rays)
         }
     }
 
@@ -642,4 +666,86 @@ mod tests {
     }
 
     use crate::three_d::geometry::normalize;
+
+    /// A small tile at its finest level under a meshed light, half of which a board hides:
+    /// the light's cluster is split while what taking it as a point misses (d / (d + dist))
+    /// is more than the sampling error of the visible fraction, and no further: a part
+    /// partly visible and smaller than that is linked even over the tolerance, since
+    /// splitting it would only add links whose sampling errors add up to the same. With
+    /// σ = 1 (no credit for a partly visible pair) every such part would be split.
+    #[test]
+    fn a_partly_visible_source_is_split_only_while_its_size_is_most_of_the_error() {
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for j in 0..=8 {
+            for i in 0..=8 {
+                positions.push([i as f64 / 4.0 - 1.0, j as f64 / 4.0 - 1.0, 4.0]);
+            }
+        }
+        for j in 0..8 {
+            for i in 0..8 {
+                let (a, b) = (j * 9 + i, j * 9 + i + 1);
+                let (c, d) = (b + 9, a + 9);
+                // facing −z, down to the tile
+                triangles.push([a, d, c]);
+                triangles.push([a, c, b]);
+            }
+        }
+        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "tile", "corners": [[-0.1, -0.1, 0], [0.1, -0.1, 0], [0.1, 0.1, 0], [-0.1, 0.1, 0]],
+             "reflectance": 0.5},
+            {"name": "board", "corners": [[0, -1, 2], [0, 1, 2], [1, 1, 2], [1, -1, 2]],
+             "reflectance": 0.5},
+            {"name": "light", "mesh": {"positions": positions, "triangles": triangles},
+             "reflectance": 0.0, "emission": 1.0}
+        ]}, "solver": {"method": "hierarchical"}});
+        let quads = match crate::scene::parse_value(&doc, &crate::scene::Limits::default())
+            .unwrap()
+            .scene
+            .kind
+        {
+            crate::scene::SceneKind::ThreeD(scene) => scene.patches,
+            _ => unreachable!(),
+        };
+        let geo = crate::three_d::projection::Geometry::new(&quads);
+        let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
+        let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-4);
+        h.cluster_state = h.measure_clusters();
+        let tile = 0u32;
+        assert!(!h.splittable(tile));
+        let light = *h.clusters.roots.iter().find(|&&r| is_cluster(r)).unwrap();
+        let (mut split, mut linked, mut over) = (0, 0, 0);
+        let mut open = vec![light];
+        while let Some(s) = open.pop() {
+            if !is_cluster(s) {
+                continue;
+            }
+            let (er, es) = (h.end(tile), h.end(s));
+            let (dr, ds) = (er.bound.diameter(), es.bound.diameter());
+            let dist = er.bound.distance(&es.bound);
+            let geometric = dr.max(ds) / (dr.max(ds) + dist);
+            let at_one = h.cluster_error(&h.state(tile), &h.state(s), dist, 1.0);
+            match h.judge_cluster(tile, s).0 {
+                ClusterVerdict::Source => {
+                    split += 1;
+                    open.extend(h.clusters.get(s).children);
+                }
+                ClusterVerdict::Link(g) if g.visibility < 1.0 => {
+                    linked += 1;
+                    assert!(g.sampled > 0.0 && (g.smooth - geometric - g.sampled).abs() < 1e-12);
+                    assert!(ds > dr && at_one > h.threshold, "σ = 1 would split it");
+                    let err = h.cluster_error(&h.state(tile), &h.state(s), dist, g.smooth);
+                    if err > h.threshold {
+                        over += 1;
+                        assert!(geometric <= g.sampled, "{geometric} {}", g.sampled);
+                    }
+                }
+                _ => {}
+            }
+        }
+        assert!(
+            split >= 2 && over >= 1,
+            "{split} splits, {linked} partly visible links, {over} over the tolerance"
+        );
+    }
 }

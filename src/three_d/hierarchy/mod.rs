@@ -315,7 +315,7 @@ impl<'g> Hierarchy<'g> {
         self.cluster_state = self.measure_clusters();
         let old = std::mem::take(&mut self.cluster_links);
         for l in old {
-            if self.cluster_outgrown(l.recv, l.src, l.smooth) {
+            if self.cluster_outgrown(l.recv, l.src, l.smooth, l.sampled) {
                 again.push((l.recv, l.src));
                 reopened += 1;
             } else {
@@ -323,7 +323,7 @@ impl<'g> Hierarchy<'g> {
             }
         }
         for (r, s) in std::mem::take(&mut self.hidden_clusters) {
-            if self.cluster_outgrown(r, s, 1.0) {
+            if self.cluster_outgrown(r, s, 1.0, 0.0) {
                 again.push((r, s));
                 reopened += 1;
             } else {

@@ -618,6 +618,7 @@ impl Hierarchy<'_> {
                         visibility: g.visibility,
                         affine: g.affine,
                         smooth: g.smooth,
+                        sampled: g.sampled,
                     }),
                     ClusterVerdict::Hidden => self.hidden_clusters.push((r, s)),
                     ClusterVerdict::Inert => {}
