@@ -253,10 +253,10 @@ pub fn solve_job(
     };
     let mut sol = match (&job.scene.kind, job.solver.method) {
         (SceneKind::Fredholm(_), Method::Hierarchical) => {
-            return Err(JobError::Unsupported(
-                "the hierarchical method solves flatland and 3d scenes, not fredholm equations"
-                    .into(),
-            ))
+            return Err(JobError::Unsupported {
+                method: "hierarchical",
+                scene: "fredholm",
+            })
         }
         (SceneKind::Flatland(segments), Method::Hierarchical) => crate::flatland::hierarchy::solve(
             segments,

@@ -663,7 +663,10 @@ fn a_hierarchy_too_large_for_memory_stops_with_a_clear_error() {
     doc["solver"] =
         json!({ "method": "hierarchical", "order": 6, "resolution": 256, "epsilon": 1e-6 });
     match job::run(&job(doc), &Silent) {
-        Err(wavrad::job::JobError::TooLarge(m)) => {
+        Err(e @ wavrad::job::JobError::TooLarge { order: 6, links }) => {
+            // the budget: 1 GiB of 2401-number blocks
+            assert!((50_000..60_000).contains(&links), "{links}");
+            let m = e.to_string();
             assert!(m.contains("links") && m.contains("solver.epsilon"), "{m}")
         }
         Err(e) => panic!("{e}"),

@@ -345,11 +345,10 @@ impl<'a> Hierarchy<'a> {
     /// An error if the refinement stopped at `max_links`.
     fn within_budget(&self) -> Result<(), JobError> {
         if self.too_large {
-            return Err(JobError::TooLarge(format!(
-                "the hierarchy needs more than {} links of order {}; raise solver.epsilon or \
-                 lower solver.order or solver.resolution",
-                self.max_links, self.order
-            )));
+            return Err(JobError::TooLarge {
+                links: self.max_links,
+                order: self.order,
+            });
         }
         Ok(())
     }

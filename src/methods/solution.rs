@@ -13,13 +13,23 @@ use std::collections::BTreeMap;
 pub enum JobError {
     #[error("cancelled")]
     Cancelled,
-    #[error("{0}")]
-    Diverged(String),
-    #[error("{0}")]
-    Unsupported(String),
-    /// The problem outgrew the memory the solver allows itself.
-    #[error("{0}")]
-    TooLarge(String),
+    /// The iteration stopped contracting ([`SolveError::Diverged`]).
+    #[error("the iteration diverged at sweep {iteration}: {reason}")]
+    Diverged { iteration: usize, reason: String },
+    /// A method asked for a kind of scene it does not solve (the document's validation
+    /// refuses these first; a library caller may still ask).
+    #[error("the {method} method does not solve {scene} scenes")]
+    Unsupported {
+        method: &'static str,
+        scene: &'static str,
+    },
+    /// The problem outgrew the memory the solver allows itself: the refinement asked for more
+    /// than `links` links of polynomial order `order`.
+    #[error(
+        "the hierarchy needs more than {links} links of order {order}; raise solver.epsilon \
+         or lower solver.order or solver.resolution"
+    )]
+    TooLarge { links: usize, order: usize },
 }
 
 impl From<Cancelled> for JobError {
@@ -32,7 +42,7 @@ impl From<SolveError> for JobError {
     fn from(e: SolveError) -> Self {
         match e {
             SolveError::Cancelled => JobError::Cancelled,
-            e => JobError::Diverged(e.to_string()),
+            SolveError::Diverged { iteration, reason } => JobError::Diverged { iteration, reason },
         }
     }
 }

@@ -779,23 +779,23 @@ impl Queue {
                 ),
             ),
             Ok(Err(JobError::Cancelled)) => {}
-            Ok(Err(JobError::Diverged(m))) => failure(
+            Ok(Err(e @ JobError::Diverged { .. })) => failure(
                 "diverged",
                 "The solve failed",
                 StatusCode::INTERNAL_SERVER_ERROR,
-                m,
+                e.to_string(),
             ),
-            Ok(Err(JobError::Unsupported(m))) => failure(
+            Ok(Err(e @ JobError::Unsupported { .. })) => failure(
                 "unsupported",
                 "Not supported",
                 StatusCode::UNPROCESSABLE_ENTITY,
-                m,
+                e.to_string(),
             ),
-            Ok(Err(JobError::TooLarge(m))) => failure(
+            Ok(Err(e @ JobError::TooLarge { .. })) => failure(
                 "too-large",
                 "The problem is too large",
                 StatusCode::UNPROCESSABLE_ENTITY,
-                m,
+                e.to_string(),
             ),
             Err(panic) => {
                 let msg = panic

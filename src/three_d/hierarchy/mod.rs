@@ -633,13 +633,10 @@ fn straddles_emission(quad: &Quad, piece: Piece) -> bool {
 /// Why the refinement stopped: the caller's cancel, or the link budget.
 fn stopped(h: &Hierarchy, _: Cancelled) -> JobError {
     if h.too_large {
-        JobError::TooLarge(format!(
-            "the hierarchy needs more than {} links of order {} ({} GiB of blocks); raise \
-             solver.epsilon or lower solver.order or solver.resolution",
-            h.max_links,
-            h.k - 1,
-            LINK_BYTES >> 30
-        ))
+        JobError::TooLarge {
+            links: h.max_links,
+            order: h.k - 1,
+        }
     } else {
         JobError::Cancelled
     }
@@ -654,10 +651,10 @@ pub fn solve(
     progress: &dyn Progress,
 ) -> Result<Solution, JobError> {
     let SceneKind::ThreeD(quads) = &job.scene.kind else {
-        return Err(JobError::Unsupported(format!(
-            "{} scenes with the hierarchical method are not available in this build",
-            job.scene.kind.name()
-        )));
+        return Err(JobError::Unsupported {
+            method: "hierarchical",
+            scene: job.scene.kind.name(),
+        });
     };
     let mut timings = BTreeMap::new();
     let t = Instant::now();
