@@ -906,4 +906,75 @@ mod tests {
         assert_eq!(h.splits(first, small, 0.01, 0.0, 0.1), None);
         assert_eq!(h.splits(first, small, 1.0, 0.0, 0.1), Some(false));
     }
+
+    /// The visible fraction of a pair of large pieces is sampled on a finer grid, as long as
+    /// both have levels below them: a floor with a wall standing on it and a light above (the
+    /// wall hides part of the light from the floor), at order 0 (one ray per point pair of
+    /// an n × n grid, every pair facing): 16 × 16 rays for the roots, 8 × 8 for elements of
+    /// level 1, 4 × 4 from level 2 on, and 4 × 4 for the roots of a scene whose surfaces
+    /// cannot be split (a mesh's triangles are most often such).
+    #[test]
+    fn pairs_of_large_pieces_get_more_rays() {
+        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "floor", "corners": [[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0]],
+             "reflectance": 0.5},
+            {"name": "wall", "corners": [[1, 1, 0], [1, 3, 0], [1, 3, 2], [1, 1, 2]],
+             "reflectance": 0.5},
+            {"name": "light", "corners": [[0, 0, 3], [0, 4, 3], [4, 4, 3], [4, 0, 3]],
+             "reflectance": 0.0, "emission": 1.0}
+        ]}});
+        let quads = &patches(doc);
+        let geo = Geometry::new(quads);
+        let rays = |h: &Hierarchy, r: u32, s: u32| {
+            let (verdict, rays) = h.judge(r, s, h.estimate(r, s));
+            assert!(
+                matches!(verdict, Verdict::Link(_, v) if v.whole < 1.0),
+                "{verdict:?} {:?} {:?}",
+                h.elements[r as usize].piece,
+                h.elements[s as usize].piece
+            );
+            rays
+        };
+        let (floor, light) = (0u32, 2u32);
+        for (size, want) in [(0.5, [256, 64, 16]), (8.0, [16, 0, 0])] {
+            let mut h = Hierarchy::new(
+                &geo,
+                quads,
+                0,
+                Sizing::new(&geo.quads, Some(size), None),
+                1e-3,
+            );
+            // every pair is accepted: only the rays are counted
+            h.threshold = f64::INFINITY;
+            assert_eq!(rays(&h, floor, light), want[0], "size {size}");
+            if size > 4.0 {
+                assert!(!h.splittable(floor) && !h.splittable(light));
+                continue;
+            }
+            // the floor's square of side 2, then 1, at the wall's back (x < 1) beside its foot;
+            // the light's over the floor's next square (x > 1), so that the wall is between
+            let child = |h: &mut Hierarchy, e: u32, s: f64, t: f64| {
+                let first = h.split(e);
+                (first..first + 4)
+                    .find(|&c| {
+                        let p = h.elements[c as usize].piece;
+                        p.s[0] == s && p.t[0] == t
+                    })
+                    .unwrap()
+            };
+            let (mut r, mut s) = (floor, light);
+            for (level, &want) in want.iter().enumerate().skip(1) {
+                // floor: s along x, t along y; light: s along y, t along x
+                let (rs, rt, ss, st) = if level == 1 {
+                    (0.0, 0.0, 0.0, 0.0)
+                } else {
+                    (0.0, 0.25, 0.25, 0.25)
+                };
+                r = child(&mut h, r, rs, rt);
+                s = child(&mut h, s, ss, st);
+                assert_eq!(h.elements[r as usize].level, level as u32);
+                assert_eq!(rays(&h, r, s), want, "level {level}");
+            }
+        }
+    }
 }
