@@ -164,6 +164,18 @@ impl SplitMix {
     }
 }
 
+/// What the visible fraction of a pair may still be when none of its `rays` got through: 3/n,
+/// the one-sided 95 % bound on a fraction of which none of n samples hit (the "rule of three":
+/// (1 − V)ⁿ ≤ 0.05 for V ≥ 3/n). The oracles take it as the share of the pair's transfer that
+/// a hidden pair may be missing (through a gap the rays did not find), not the whole of it.
+pub fn unseen_bound(rays: u64) -> f64 {
+    if rays == 0 {
+        1.0
+    } else {
+        (3.0 / rays as f64).min(1.0)
+    }
+}
+
 /// A seed from two element identities (order matters: the pair is directed).
 pub fn pair_seed(a: u64, b: u64) -> u64 {
     let mut r = SplitMix(a.wrapping_mul(0x100_0000_01B3) ^ b.rotate_left(32));

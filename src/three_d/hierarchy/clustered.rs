@@ -32,7 +32,7 @@ use crate::scene::Rgb;
 use crate::three_d::cluster::{is_cluster, Bound};
 use crate::three_d::cover::{Exposure, Partial};
 use crate::three_d::geometry::{add, dot, norm, scale, sub, V3};
-use crate::three_d::visibility::{pair_seed, SplitMix};
+use crate::three_d::visibility::{pair_seed, unseen_bound, SplitMix};
 use rayon::prelude::*;
 
 /// Rays between two clusters for their visible fraction.
@@ -147,7 +147,9 @@ pub(super) enum ClusterVerdict {
     Source,
     Both,
     Link(ClusterLinkGeometry),
-    Hidden,
+    /// No ray got through: no link, with the oracle's factor for what the rays may have
+    /// missed.
+    Hidden(f64),
     Inert,
 }
 
@@ -391,6 +393,11 @@ impl Hierarchy<'_> {
         // correlation with the kernel over the pair, first order in the larger end's size
         let (smooth, sampled) = if v >= 1.0 {
             (smooth, 0.0)
+        } else if v <= 0.0 {
+            // hidden: no more of the transfer may be missing than the rays' bound, which
+            // adds up over the source's parts as a sampling error does
+            let unseen = unseen_bound(valid as u64);
+            (unseen, unseen)
         } else if can(r) {
             (1.0, 0.0)
         } else {
@@ -402,7 +409,7 @@ impl Hierarchy<'_> {
             return (split(), rays);
         }
         if v <= 0.0 {
-            return (ClusterVerdict::Hidden, rays);
+            return (ClusterVerdict::Hidden(smooth), rays);
         }
         if norm(sub(er.centre, es.centre)) <= 0.0 {
             return (split(), rays);

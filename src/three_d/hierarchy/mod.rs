@@ -95,8 +95,9 @@ pub struct Hierarchy<'g> {
     pub clusters: Clusters,
     /// Links with a cluster at one end or both.
     pub cluster_links: Vec<clustered::ClusterLink>,
-    /// Cluster pairs accepted without a link because none of their rays got through.
-    pub hidden_clusters: Vec<(u32, u32)>,
+    /// Cluster pairs accepted without a link because none of their rays got through, with
+    /// the oracle's factor for what the rays may have missed.
+    pub hidden_clusters: Vec<(u32, u32, f64)>,
     /// Per cluster, what the oracle needs of its members, from the last solve.
     pub cluster_state: Vec<clustered::State>,
     pub rays: u64,
@@ -322,12 +323,12 @@ impl<'g> Hierarchy<'g> {
                 self.cluster_links.push(l);
             }
         }
-        for (r, s) in std::mem::take(&mut self.hidden_clusters) {
-            if self.cluster_outgrown(r, s, 1.0, 0.0) {
+        for (r, s, smooth) in std::mem::take(&mut self.hidden_clusters) {
+            if self.cluster_outgrown(r, s, smooth, smooth) {
                 again.push((r, s));
                 reopened += 1;
             } else {
-                self.hidden_clusters.push((r, s));
+                self.hidden_clusters.push((r, s, smooth));
             }
         }
         let mut pending = Vec::new();

@@ -40,7 +40,7 @@ use crate::three_d::geometry::{add, dot, norm, normalize, quad_quad, scale, sub}
 use crate::three_d::projection::VISIBILITY_GRID;
 use crate::three_d::steps::{Steps, STEP};
 use crate::three_d::transfer::{self, Integrand};
-use crate::three_d::visibility::{pair_seed, visible_fraction_over, Seen};
+use crate::three_d::visibility::{pair_seed, unseen_bound, visible_fraction_over, Seen};
 use rayon::prelude::*;
 
 /// The share of the tolerance for a receiver along a line where another surface stands on its
@@ -489,11 +489,14 @@ impl Hierarchy<'_> {
         if self.k > 1 && grid < fine && v.whole > 0.0 && v.whole < 1.0 {
             v = visible_fraction_over(bvh, pr, mask, ps, fine, seed ^ 1, &mut rays);
         }
-        // partly visible, or hidden as far as the few sampled rays can tell (a big pair's
-        // light may pass through a gap none of them found): no smoothness credit
+        // partly visible: no smoothness credit. Hidden as far as the sampled rays can tell: a
+        // big pair's light may pass through a gap none of them found, but no more of it than
+        // the rays' bound on what they missed ([`unseen_bound`])
         let x = Factors {
             f,
-            smooth: if v.whole < 1.0 || contact {
+            smooth: if v.whole <= 0.0 && !contact {
+                unseen_bound(rays)
+            } else if v.whole < 1.0 || contact {
                 1.0
             } else {
                 smooth
@@ -620,7 +623,7 @@ impl Hierarchy<'_> {
                         smooth: g.smooth,
                         sampled: g.sampled,
                     }),
-                    ClusterVerdict::Hidden => self.hidden_clusters.push((r, s)),
+                    ClusterVerdict::Hidden(smooth) => self.hidden_clusters.push((r, s, smooth)),
                     ClusterVerdict::Inert => {}
                 }
             }
