@@ -15,7 +15,9 @@
 //! pair loses the smoothness factor (a shadow edge is not a polynomial), and so does a receiver
 //! along a line where another surface stands on its surface, when anything may come between it
 //! and S; such a pair is judged against [`CONTACT_SHARE`] of the tolerance, before any ray,
-//! and split on the receiver's side unless the receiver is the smaller. w_R = 1 when S emits;
+//! and split on the receiver's side unless the receiver is the smaller. A pair none of whose
+//! n rays got through takes 3/n for the factor, the rays' bound on what they missed
+//! ([`crate::three_d::visibility::unseen_bound`]). w_R = 1 when S emits;
 //! for inter-reflected light it is the number of non-emitting surfaces facing R's surface: the
 //! tolerance is shared among them, because R gathers from all of them and their errors add up
 //! with one sign (a coarse link averages a source's bright spot over a kernel that peaks at
@@ -979,5 +981,45 @@ mod tests {
                 assert_eq!(rays(&h, r, s), want, "level {level}");
             }
         }
+    }
+
+    /// A pair that none of its rays gets through (a board larger than both between a floor
+    /// and a light) is judged by 3/n of its transfer, the rays' bound on what they missed,
+    /// not by all of it: at the top level, 3/256.
+    #[test]
+    fn a_hidden_pair_is_judged_by_what_its_rays_may_have_missed() {
+        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "floor", "corners": [[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0]],
+             "reflectance": 0.5},
+            {"name": "board", "corners": [[-2, -2, 1], [6, -2, 1], [6, 6, 1], [-2, 6, 1]],
+             "reflectance": 0.5},
+            {"name": "light", "corners": [[0, 0, 3], [0, 4, 3], [4, 4, 3], [4, 0, 3]],
+             "reflectance": 0.0, "emission": 1.0}
+        ]}});
+        let quads = &patches(doc);
+        let geo = Geometry::new(quads);
+        let sizing = Sizing::new(&geo.quads, Some(0.5), None);
+        let mut h = Hierarchy::new(&geo, quads, 0, sizing, 1e-3);
+        let (floor, light) = (0u32, 2u32);
+        let estimate = h.estimate(floor, light);
+        let unsure = Factors {
+            f: estimate.0,
+            smooth: 1.0,
+            contact: false,
+        };
+        let whole = h.error(floor, light, unsure).0;
+        // a tolerance above the estimate before any ray (the kernel's smoothness factor,
+        // d / (d + dist) = 0.65) and below the whole transfer, which the pair was judged by
+        // when hidden before: now accepted as hidden
+        assert!(estimate.1 < 0.7);
+        h.threshold = 0.8 * whole;
+        let (verdict, rays) = h.judge(floor, light, estimate);
+        assert_eq!(rays, 256);
+        let Verdict::Hidden(x) = verdict else {
+            panic!("{verdict:?}")
+        };
+        assert_eq!(x.smooth, 3.0 / 256.0);
+        assert!(h.error(floor, light, x).0 < h.threshold);
+        assert!(h.error(floor, light, unsure).0 > h.threshold);
     }
 }
