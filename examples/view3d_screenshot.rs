@@ -7,12 +7,12 @@
 //! ```text
 //! cargo run --release -- serve &
 //! cargo run --release --example view3d_screenshot -- http://127.0.0.1:8080 out.png \
-//!     '{"output": {"camera": {...}}}' scenes/models/room.obj scenes/models/room.mtl
+//!     '{"solver": {"epsilon": 0.002}}' model.obj model.mtl
 //! ```
 //!
 //! The settings (third argument, `{}` for none) are merged into the document's top-level
-//! objects (`solver`, `output`) before it is submitted. The README's picture of the furnished
-//! room is made this way (its command is in the README).
+//! objects (`solver`, `output`) before it is submitted. The README's picture of the 3D view is
+//! made this way (its command is in the README).
 
 use fantoccini::{ClientBuilder, Locator};
 use serde_json::{json, Value};

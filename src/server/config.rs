@@ -21,9 +21,9 @@ pub struct Config {
     /// Most surfaces in one scene.
     #[arg(long, env = "WAVRAD_MAX_SURFACES", default_value_t = 64)]
     pub max_surfaces: usize,
-    /// Most triangles in one scene (`triangle` and `mesh` surfaces together). Every facing
-    /// pair of triangles is linked before refinement starts, so the solve's time and memory grow
-    /// with the square of this.
+    /// Most triangles in one scene (`triangle` and `mesh` surfaces together). A mesh's
+    /// triangles are clustered, but in a cluttered scene each triangle is still linked with
+    /// hundreds of its neighbours, so time and memory grow faster than this (benches/README.md).
     #[arg(long, env = "WAVRAD_MAX_TRIANGLES", default_value_t = 4096)]
     pub max_triangles: usize,
     /// Highest polynomial order.
