@@ -294,7 +294,7 @@ pub fn solve_job(
 }
 
 /// Transform, threshold and solve a system; B, E and H as fields.
-pub fn projection_solve(
+fn projection_solve(
     mut system: System,
     job: &Job,
     keep: Keep,
@@ -483,7 +483,7 @@ fn kernel_error_3d(
 }
 
 /// Per-surface fields from scaling-basis coefficients: N = φ_p(ŝ)[φ_q(t̂)] / √(h^d · measure).
-pub fn fields_from_scaling(
+fn fields_from_scaling(
     layout: Layout,
     order: usize,
     measure: &[f64],

@@ -107,7 +107,7 @@ impl Line {
 }
 
 /// Distance from p to the segment [a, b].
-pub fn point_segment_distance(p: V2, a: V2, b: V2) -> f64 {
+fn point_segment_distance(p: V2, a: V2, b: V2) -> f64 {
     let d = b - a;
     let l2 = d.dot(d);
     let t = if l2 > 0.0 {
@@ -119,7 +119,7 @@ pub fn point_segment_distance(p: V2, a: V2, b: V2) -> f64 {
 }
 
 /// Whether the closed segments [a, b] and [c, d] meet.
-pub fn segments_intersect(a: V2, b: V2, c: V2, d: V2) -> bool {
+fn segments_intersect(a: V2, b: V2, c: V2, d: V2) -> bool {
     let o1 = (b - a).cross(c - a);
     let o2 = (b - a).cross(d - a);
     let o3 = (d - c).cross(a - c);

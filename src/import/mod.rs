@@ -24,14 +24,14 @@ use std::fmt;
 pub type Files<'a> = &'a dyn Fn(&str) -> Option<Vec<u8>>;
 
 /// The largest reflectance an imported surface gets: the document needs ρ < 1.
-pub const MAX_REFLECTANCE: f64 = 0.99;
+const MAX_REFLECTANCE: f64 = 0.99;
 
 /// The reflectance of a surface without a material (or whose material was not found).
 pub const DEFAULT_REFLECTANCE: f64 = 0.5;
 
 /// A triangle whose doubled area |e1 × e2| is at most this fraction of its longest edge squared
 /// is of zero area (collinear or repeated corners) and is dropped.
-pub const ZERO_AREA: f64 = 1e-9;
+const ZERO_AREA: f64 = 1e-9;
 
 /// The kinds of model read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -133,7 +133,7 @@ pub fn cell_halves(n: usize, upper: bool) -> impl Iterator<Item = (usize, usize,
 }
 
 /// The reference triangle's vertices (s, t), in order.
-pub const VERTICES: [[f64; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+const VERTICES: [[f64; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
 
 /// The midpoint split's children in the parent's reference coordinates: child c is the affine
 /// image of the reference triangle whose vertex i is `CHILDREN[c][i]` (see the module's table).
@@ -150,7 +150,7 @@ pub const fn dimension(m: usize) -> usize {
 }
 
 /// The point of the parent, in its (s, t), that is point (s, t) of child `child`: F_c(s, t).
-pub fn to_parent(child: usize, s: f64, t: f64) -> [f64; 2] {
+fn to_parent(child: usize, s: f64, t: f64) -> [f64; 2] {
     let [a, b, c] = CHILDREN[child];
     [
         a[0] + s * (b[0] - a[0]) + t * (c[0] - a[0]),

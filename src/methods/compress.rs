@@ -13,7 +13,7 @@ use crate::scene::{Keep, Rgb};
 use rayon::prelude::*;
 
 /// Transforms one vector of a surface in place (scaling → wavelet).
-pub fn forward_surface(layout: Layout, data: &mut [f64], scratch: &mut Vec<f64>) {
+fn forward_surface(layout: Layout, data: &mut [f64], scratch: &mut Vec<f64>) {
     match layout {
         Layout::Line { cells, k } => {
             transform::forward(data, cells, Filters::of_order(k - 1), 1, scratch)
@@ -25,7 +25,7 @@ pub fn forward_surface(layout: Layout, data: &mut [f64], scratch: &mut Vec<f64>)
 }
 
 /// Transforms one vector of a surface in place (wavelet → scaling).
-pub fn inverse_surface(layout: Layout, data: &mut [f64], scratch: &mut Vec<f64>) {
+fn inverse_surface(layout: Layout, data: &mut [f64], scratch: &mut Vec<f64>) {
     match layout {
         Layout::Line { cells, k } => {
             transform::inverse(data, cells, Filters::of_order(k - 1), 1, scratch)
@@ -37,14 +37,14 @@ pub fn inverse_surface(layout: Layout, data: &mut [f64], scratch: &mut Vec<f64>)
 }
 
 /// Applies the per-surface transform to every surface block of a vector.
-pub fn forward_vector(layout: Layout, v: &mut [f64]) {
+fn forward_vector(layout: Layout, v: &mut [f64]) {
     let mut scratch = Vec::new();
     for block in v.chunks_mut(layout.len()) {
         forward_surface(layout, block, &mut scratch);
     }
 }
 
-pub fn inverse_vector(layout: Layout, v: &mut [f64]) {
+fn inverse_vector(layout: Layout, v: &mut [f64]) {
     let mut scratch = Vec::new();
     for block in v.chunks_mut(layout.len()) {
         inverse_surface(layout, block, &mut scratch);
@@ -52,7 +52,7 @@ pub fn inverse_vector(layout: Layout, v: &mut [f64]) {
 }
 
 /// Per-channel version of [`forward_vector`].
-pub fn forward_rgb(layout: Layout, v: &mut [[f64; 3]]) {
+fn forward_rgb(layout: Layout, v: &mut [[f64; 3]]) {
     for c in 0..3 {
         let mut ch: Vec<f64> = v.iter().map(|x| x[c]).collect();
         forward_vector(layout, &mut ch);

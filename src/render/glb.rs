@@ -158,7 +158,7 @@ pub fn parallelogram(name: &str, corners: &[[f64; 3]; 4], field: &Field, white: 
 }
 
 /// The lit meshes of a solved 3D job's surfaces, in document order (none for other kinds).
-pub fn lit_meshes(job: &Job, fields: &[Field], white: f64) -> Vec<LitMesh> {
+fn lit_meshes(job: &Job, fields: &[Field], white: f64) -> Vec<LitMesh> {
     let SceneKind::ThreeD(d) = &job.scene.kind else {
         return Vec::new();
     };
@@ -221,7 +221,7 @@ pub fn scene(job: &Job, fields: &[Field], white: f64, view: Option<View>) -> Vec
 }
 
 /// The mean over the leaves that hold grid point (i, j) of their polynomials there.
-pub fn mean_at(field: &Field, i: u32, j: u32) -> [f64; 3] {
+fn mean_at(field: &Field, i: u32, j: u32) -> [f64; 3] {
     let n = field.res as u32;
     let (s, t) = (i as f64 / n as f64, j as f64 / n as f64);
     let mut seen: [Option<&Leaf>; 4] = [None; 4];

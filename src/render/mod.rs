@@ -200,7 +200,7 @@ pub fn tone(v: [f64; 3], white: f64) -> Rgb<u8> {
 }
 
 /// PNG bytes of an image (fast deflate, adaptive filter: deterministic for the same pixels).
-pub fn encode_png(img: &RgbImage) -> Vec<u8> {
+fn encode_png(img: &RgbImage) -> Vec<u8> {
     let mut out = Vec::new();
     image::codecs::png::PngEncoder::new_with_quality(
         &mut out,

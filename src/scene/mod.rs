@@ -383,7 +383,7 @@ impl Default for Output {
 
 impl Job {
     /// Number of surfaces (1 for `fredholm`, whose domain is one "surface").
-    pub fn surface_count(&self) -> usize {
+    fn surface_count(&self) -> usize {
         match &self.scene.kind {
             SceneKind::Flatland(s) => s.len(),
             SceneKind::ThreeD(q) => q.surfaces.len(),
@@ -401,7 +401,7 @@ impl Job {
     }
 
     /// Basis functions per surface of the projection method: `n (m+1)` in 1D, `(n (m+1))²` on a quad.
-    pub fn basis_per_surface(&self) -> usize {
+    fn basis_per_surface(&self) -> usize {
         let per_side = self.solver.resolution * (self.solver.order + 1);
         match self.scene.kind {
             SceneKind::ThreeD(_) => per_side * per_side,

@@ -1161,7 +1161,7 @@ fn reference(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Reference> {
 /// Checks that involve more than one part of the document.
 /// The most cell means a result may list (about 16 MB of JSON): `grid` goes up to 1024, and
 /// 1024² cells on each of a Cornell box's 16 surfaces would be a 2 GB result.
-pub const MAX_RESULT_CELLS: usize = 1 << 18;
+const MAX_RESULT_CELLS: usize = 1 << 18;
 
 fn cross_checks(w: &mut Walker, shape: &Shape, solver: &Solver, output: &Output, limits: &Limits) {
     let per_surface = output.grid.pow(shape.dims);

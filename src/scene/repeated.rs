@@ -11,7 +11,7 @@ use std::collections::HashMap;
 use std::fmt;
 
 /// The most repeated names reported for one document.
-pub const MAX_REPORTED: usize = 100;
+const MAX_REPORTED: usize = 100;
 
 /// Every repeated name in the JSON `text` (each once per object, at most [`MAX_REPORTED`]),
 /// at its JSON pointer, in document order. A text that is not JSON has none (its parse

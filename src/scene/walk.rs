@@ -207,7 +207,7 @@ impl Walker {
     }
 }
 
-pub fn kind_of(v: &Value) -> &'static str {
+fn kind_of(v: &Value) -> &'static str {
     match v {
         Value::Null => "null",
         Value::Bool(_) => "a boolean",

@@ -144,7 +144,7 @@ impl Config {
 }
 
 /// `"90"`, `"90s"`, `"250ms"`, `"5m"`, `"2h"`, `"7d"`.
-pub fn parse_duration(text: &str) -> Result<Duration, String> {
+fn parse_duration(text: &str) -> Result<Duration, String> {
     let text = text.trim();
     let split = text
         .find(|c: char| !(c.is_ascii_digit() || c == '.'))
@@ -166,7 +166,7 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
 
 /// A size in bytes: `"1048576"`, `"500kB"`, `"64MiB"`, `"2GB"`, `"1GiB"` (kB, MB, GB, TB are
 /// powers of 1000, KiB, MiB, GiB, TiB of 1024; `B` alone is bytes).
-pub fn parse_bytes(text: &str) -> Result<u64, String> {
+fn parse_bytes(text: &str) -> Result<u64, String> {
     let text = text.trim();
     let split = text
         .find(|c: char| !(c.is_ascii_digit() || c == '.'))
@@ -199,7 +199,7 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
 }
 
 /// A PostgreSQL connection URL: `postgres://` or `postgresql://`.
-pub fn parse_database_url(text: &str) -> Result<String, String> {
+fn parse_database_url(text: &str) -> Result<String, String> {
     let text = text.trim();
     if !(text.starts_with("postgres://") || text.starts_with("postgresql://")) {
         return Err("give a PostgreSQL URL: postgres://user:password@host:port/database".into());
@@ -208,7 +208,7 @@ pub fn parse_database_url(text: &str) -> Result<String, String> {
 }
 
 /// A pool size: 1 to 1000 connections.
-pub fn parse_pool_size(text: &str) -> Result<usize, String> {
+fn parse_pool_size(text: &str) -> Result<usize, String> {
     match text.trim().parse::<usize>() {
         Ok(n) if (1..=1000).contains(&n) => Ok(n),
         _ => Err(format!("not a pool size from 1 to 1000: {text:?}")),
@@ -216,7 +216,7 @@ pub fn parse_pool_size(text: &str) -> Result<usize, String> {
 }
 
 /// [`parse_duration`], refusing zero (a job timeout of zero would fail every job).
-pub fn parse_positive_duration(text: &str) -> Result<Duration, String> {
+fn parse_positive_duration(text: &str) -> Result<Duration, String> {
     let d = parse_duration(text)?;
     if d.is_zero() {
         return Err("must be longer than zero".into());

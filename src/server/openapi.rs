@@ -79,7 +79,7 @@ pub type ResultDocument = crate::result::JobResult;
     )),
     modifiers(&Shed)
 )]
-pub struct ApiDoc;
+struct ApiDoc;
 
 /// Every route but the probes and `/metrics` sheds load past `max_concurrent_requests`
 /// with 503 and `Retry-After` (see `server::mod`): listed once here rather than on each.

@@ -9,7 +9,7 @@ use axum::response::IntoResponse;
 use serde::Serialize;
 use utoipa::ToSchema;
 
-pub const PROBLEM_JSON: &str = "application/problem+json";
+const PROBLEM_JSON: &str = "application/problem+json";
 
 /// One error of a document: the JSON pointer at fault and what is wrong there.
 #[derive(Debug, Clone, Serialize, ToSchema)]

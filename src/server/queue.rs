@@ -933,7 +933,7 @@ fn as_slices(files: &[(String, Vec<u8>)]) -> Vec<(String, &[u8])> {
 /// goes back on `free` once it is larger than the trim threshold ([`tune_malloc`]). Other
 /// allocators return memory on their own.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
-pub fn release_memory() {
+fn release_memory() {
     // SAFETY: malloc_trim has no preconditions; it only releases free memory.
     unsafe {
         libc::malloc_trim(0);

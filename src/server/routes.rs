@@ -195,7 +195,7 @@ pub async fn create_job(
 }
 
 /// The most jobs one list answers; a larger `limit` is capped to it.
-pub const MAX_LIST: u64 = 1000;
+const MAX_LIST: u64 = 1000;
 
 #[derive(Debug, Deserialize, utoipa::IntoParams)]
 #[into_params(parameter_in = Query)]
@@ -752,7 +752,7 @@ async fn vendored(Path(path): Path<String>) -> Result<Response, Problem> {
 }
 
 /// The example scenes shipped in `scenes/`, embedded.
-pub const SCENES: [(&str, &str); 8] = [
+const SCENES: [(&str, &str); 8] = [
     (
         "flatland-parallel",
         include_str!("../../scenes/flatland-parallel.json"),

@@ -38,7 +38,7 @@ impl Relabel {
         [(false, false), (true, false), (true, true), (false, true)];
 
     /// The labelling with its origin at `corner`, with or without the swap.
-    pub fn from_corner(corner: usize, swap: bool) -> Relabel {
+    fn from_corner(corner: usize, swap: bool) -> Relabel {
         let (flip_s, flip_t) = Relabel::ORIGIN_FLIPS[corner];
         Relabel {
             swap,
@@ -81,7 +81,7 @@ impl Relabel {
 }
 
 /// Entries of a class key: 6 of the coarse part, 12 of the fine.
-pub type Key = [i64; 18];
+type Key = [i64; 18];
 
 /// A pair's class and how its labels map to the class's.
 #[derive(Debug, Clone, Copy)]

@@ -34,10 +34,10 @@ use crate::three_d::steps::STEP;
 use rayon::prelude::*;
 
 /// Sub-cells per side of a finest cell that the outline of a covered part crosses.
-pub const SUB: usize = 16;
+const SUB: usize = 16;
 
 /// Relative size below which an eigenvalue of a masked Gram matrix counts as zero.
-pub const CUTOFF: f64 = 1e-3;
+const CUTOFF: f64 = 1e-3;
 
 /// What lies under one finest cell.
 #[derive(Debug, Clone, PartialEq)]
@@ -530,11 +530,11 @@ fn padded_box(q: &Parallelogram, pad: f64) -> (V3, V3) {
 }
 
 /// How far outside a piece, in its surface's (s, t), a contact line still touches it.
-pub const MEET_SLACK: f64 = 1e-9;
+const MEET_SLACK: f64 = 1e-9;
 
 /// How close a surface must lie in front of another, as a share of its smaller side, to be
 /// taken for a lid ([`lidded`]): the probes of the mask then decide, point by point.
-pub const LID_GAP: f64 = 0.02;
+const LID_GAP: f64 = 0.02;
 
 /// Whether the segment `line` of (s, t) meets the closed piece `[s0, s1] × [t0, t1]`
 /// (Liang–Barsky clipping), widened by [`MEET_SLACK`]: a line along the border of two pieces,

@@ -147,7 +147,7 @@ impl Parallelogram {
 }
 
 /// Distance between point p and segment [a, b].
-pub fn point_segment(p: V3, a: V3, b: V3) -> f64 {
+fn point_segment(p: V3, a: V3, b: V3) -> f64 {
     let d = sub(b, a);
     let l2 = dot(d, d);
     let t = if l2 > 0.0 {
@@ -160,7 +160,7 @@ pub fn point_segment(p: V3, a: V3, b: V3) -> f64 {
 
 /// Distance between the segments [p1, q1] and [p2, q2] (Ericson, Real-Time Collision
 /// Detection, §5.1.9).
-pub fn segment_segment(p1: V3, q1: V3, p2: V3, q2: V3) -> f64 {
+fn segment_segment(p1: V3, q1: V3, p2: V3, q2: V3) -> f64 {
     let d1 = sub(q1, p1);
     let d2 = sub(q2, p2);
     let r = sub(p1, p2);

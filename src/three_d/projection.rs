@@ -88,7 +88,7 @@ impl Geometry {
 
     /// [`Geometry::visibility`] over the exposed part of `a` only, where `covered` marks a
     /// covered part of its surface ([`crate::three_d::cover`]).
-    pub fn visibility_over(
+    fn visibility_over(
         &self,
         a: Piece,
         covered: Option<&Mask>,

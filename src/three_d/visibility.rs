@@ -144,7 +144,7 @@ pub fn any_occluder(quads: &[Parallelogram], bvh: &Bvh, a: Piece, b: Piece) -> b
 /// The most surfaces in a pair's box that [`any_occluder`] tests; beyond them it answers
 /// that something may occlude, and rays decide. In a scene of many small surfaces a box may
 /// hold thousands, and a ray through the tree costs less than the tests of a few dozen.
-pub const HULL_TEST_BUDGET: usize = 256;
+const HULL_TEST_BUDGET: usize = 256;
 
 /// SplitMix64: the seeded generator of the jitter.
 #[derive(Debug, Clone)]

@@ -97,7 +97,7 @@ impl Filters {
     }
 
     /// Value at x ∈ [0, 1) of the function whose V₁ coordinates are `row` (length 2k).
-    pub fn eval_v1(&self, row: &[f64], x: f64) -> f64 {
+    fn eval_v1(&self, row: &[f64], x: f64) -> f64 {
         let k = self.k;
         let mut v = vec![0.0; k];
         let (half, local) = if x < 0.5 {

@@ -45,7 +45,7 @@ pub struct Embedded {
 
 impl Embedded {
     /// The page cache of [`Embedded::open`] (the default of `--store-cache-bytes`).
-    pub const DEFAULT_CACHE_BYTES: usize = 4 << 20;
+    const DEFAULT_CACHE_BYTES: usize = 4 << 20;
 
     /// Opens (or creates) the database under `dir`, with a page cache of
     /// [`Self::DEFAULT_CACHE_BYTES`].

@@ -101,7 +101,7 @@ pub struct Postgres {
 
 impl Postgres {
     /// How long one call may wait for the database.
-    pub const OP_TIMEOUT: Duration = Duration::from_secs(5);
+    const OP_TIMEOUT: Duration = Duration::from_secs(5);
 
     /// Connects to `url` (`postgres://user:password@host:port/database`, or the key=value
     /// form) with a pool of at most `pool_size` connections, and brings the schema up to date.

@@ -36,7 +36,7 @@ use crate::three_d::visibility::{pair_seed, unseen_bound, SplitMix};
 use rayon::prelude::*;
 
 /// Rays between two clusters for their visible fraction.
-pub const CLUSTER_RAYS: usize = 16;
+const CLUSTER_RAYS: usize = 16;
 
 /// The least distance between the boxes of a cluster link's ends, in their larger diameter.
 /// Taking both ends as points is a fair kernel only for separated ends: the distance of any
@@ -44,7 +44,7 @@ pub const CLUSTER_RAYS: usize = 16;
 /// below the form factor of a disc of the ends' size at that distance, which keeps the
 /// iteration a contraction whatever B the source has when the link is accepted (a dark
 /// source passes the oracle at any distance before the first solve).
-pub const SEPARATION: f64 = 1.0;
+const SEPARATION: f64 = 1.0;
 
 /// A link with a cluster at one end or both.
 #[derive(Debug, Clone)]

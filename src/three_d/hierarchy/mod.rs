@@ -213,7 +213,7 @@ impl<'g> Hierarchy<'g> {
     /// Links the scene to itself, refined against the current B: every ordered pair of the
     /// document's surfaces, each a patch or the root of its mesh's cluster tree (a mesh also
     /// with itself); two patches only when they face each other.
-    pub fn link_all(&mut self, progress: &dyn Progress) -> Result<(), Cancelled> {
+    fn link_all(&mut self, progress: &dyn Progress) -> Result<(), Cancelled> {
         self.cluster_state = self.measure_clusters();
         let roots = &self.clusters.roots;
         let mut pairs = Vec::new();

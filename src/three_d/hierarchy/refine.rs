@@ -59,7 +59,7 @@ pub const CONTACT_SHARE: f64 = 0.5;
 pub const DIM_KNEE: f64 = 0.5;
 
 /// The least share of the tolerance for a dim receiver surface.
-pub const DIM_SHARE: f64 = 0.0625;
+const DIM_SHARE: f64 = 0.0625;
 
 /// The level above which a receiver is split before its source when a pair is over the
 /// tolerance: an 8 × 8 split of its surface for constants, 4 × 4 for polynomials of order 1

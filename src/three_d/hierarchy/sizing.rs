@@ -14,7 +14,7 @@ use crate::three_d::geometry::{norm, Parallelogram};
 
 /// The deepest level of any surface's quadtree: 1024 × 1024 elements, the document's largest
 /// `resolution`.
-pub const MAX_LEVEL: u32 = 10;
+const MAX_LEVEL: u32 = 10;
 
 /// The default smallest element size is the diagonal of the scene's bounding box divided by
 /// this. The Cornell box (diagonal 961) gets 15 units: its 555-unit walls at most 32 × 32, the
@@ -22,7 +22,7 @@ pub const MAX_LEVEL: u32 = 10;
 /// most 32 × 32, each 1.7-unit box face at most 4 × 4. On that room the surface means at a
 /// 64th, a 128th and a 256th of the diagonal agree within 0.02 % of each other (and within
 /// the path tracer's 0.5 % noise of it), for 564 k, 847 k and 1.33 M links.
-pub const DEFAULT_DIVISIONS: f64 = 64.0;
+const DEFAULT_DIVISIONS: f64 = 64.0;
 
 /// The smallest element edge and, when the document gives it, the finest resolution.
 #[derive(Debug, Clone, Copy, PartialEq)]
