@@ -674,19 +674,15 @@ mod tests {
 
     use crate::three_d::geometry::normalize;
 
-    /// A small tile at its finest level under a meshed light, half of which a board hides:
-    /// the light's cluster is split while what taking it as a point misses (d / (d + dist))
-    /// is more than the sampling error of the visible fraction, and no further: a part
-    /// partly visible and smaller than that is linked even over the tolerance, since
-    /// splitting it would only add links whose sampling errors add up to the same. With
-    /// σ = 1 (no credit for a partly visible pair) every such part would be split.
-    #[test]
-    fn a_partly_visible_source_is_split_only_while_its_size_is_most_of_the_error() {
+    /// A 0.2 × 0.2 tile at z = 0 facing up, under a 2 × 2 light at `height` facing down (a
+    /// mesh of 128 triangles, one cluster tree), with a board at z = 2 over x ∈ [0, 1] when
+    /// `board`; elements no smaller than 1, so the tile is at its finest level.
+    fn tile_under_light(height: f64, board: bool) -> Vec<crate::scene::Quad> {
         let mut positions = Vec::new();
         let mut triangles = Vec::new();
         for j in 0..=8 {
             for i in 0..=8 {
-                positions.push([i as f64 / 4.0 - 1.0, j as f64 / 4.0 - 1.0, 4.0]);
+                positions.push([i as f64 / 4.0 - 1.0, j as f64 / 4.0 - 1.0, height]);
             }
         }
         for j in 0..8 {
@@ -698,22 +694,71 @@ mod tests {
                 triangles.push([a, c, b]);
             }
         }
-        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
-            {"name": "tile", "corners": [[-0.1, -0.1, 0], [0.1, -0.1, 0], [0.1, 0.1, 0], [-0.1, 0.1, 0]],
-             "reflectance": 0.5},
-            {"name": "board", "corners": [[0, -1, 2], [0, 1, 2], [1, 1, 2], [1, -1, 2]],
-             "reflectance": 0.5},
-            {"name": "light", "mesh": {"positions": positions, "triangles": triangles},
-             "reflectance": 0.0, "emission": 1.0}
-        ]}, "solver": {"method": "hierarchical"}});
-        let quads = match crate::scene::parse_value(&doc, &crate::scene::Limits::default())
+        let mut surfaces = vec![
+            serde_json::json!({"name": "tile", "corners": [[-0.1, -0.1, 0], [0.1, -0.1, 0], [0.1, 0.1, 0], [-0.1, 0.1, 0]],
+             "reflectance": 0.5}),
+            serde_json::json!({"name": "light", "mesh": {"positions": positions, "triangles": triangles},
+             "reflectance": 0.0, "emission": 1.0}),
+        ];
+        if board {
+            surfaces.push(serde_json::json!({"name": "board",
+                "corners": [[0, -1, 2], [0, 1, 2], [1, 1, 2], [1, -1, 2]], "reflectance": 0.5}));
+        }
+        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": surfaces},
+            "solver": {"method": "hierarchical"}});
+        match crate::scene::parse_value(&doc, &crate::scene::Limits::default())
             .unwrap()
             .scene
             .kind
         {
             crate::scene::SceneKind::ThreeD(scene) => scene.patches,
             _ => unreachable!(),
-        };
+        }
+    }
+
+    /// Ends closer than [`SEPARATION`] times their size are split whatever their estimate
+    /// (there the ends are not points): the tile and the light 2 above it (diameter 2.83) are
+    /// split at any tolerance, and the light's halves (diameter 2.24 at distance 2) as well,
+    /// its quarters (1.41) are linked; 4 above, the light is linked whole.
+    #[test]
+    fn ends_closer_than_their_size_are_split_whatever_their_estimate() {
+        for (height, unsplit) in [(2.0, 2), (4.0, 0)] {
+            let quads = tile_under_light(height, false);
+            let geo = crate::three_d::projection::Geometry::new(&quads);
+            let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
+            let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3);
+            h.threshold = f64::INFINITY;
+            h.cluster_state = h.measure_clusters();
+            let (tile, mut light) = (0u32, h.clusters.roots[1]);
+            assert!(is_cluster(light) && !h.splittable(tile));
+            for depth in 0..=unsplit {
+                let (er, es) = (h.end(tile), h.end(light));
+                let (dist, size) = (
+                    er.bound.distance(&es.bound),
+                    er.bound.diameter().max(es.bound.diameter()),
+                );
+                let verdict = h.judge_cluster(tile, light).0;
+                if depth < unsplit {
+                    assert!(dist < SEPARATION * size, "{height} {depth}");
+                    assert!(matches!(verdict, ClusterVerdict::Source), "{verdict:?}");
+                    light = h.clusters.get(light).children[0];
+                } else {
+                    assert!(dist >= SEPARATION * size, "{height} {depth}");
+                    assert!(matches!(verdict, ClusterVerdict::Link(_)), "{verdict:?}");
+                }
+            }
+        }
+    }
+
+    /// A small tile at its finest level under a meshed light, half of which a board hides:
+    /// the light's cluster is split while what taking it as a point misses (d / (d + dist))
+    /// is more than the sampling error of the visible fraction, and no further: a part
+    /// partly visible and smaller than that is linked even over the tolerance, since
+    /// splitting it would only add links whose sampling errors add up to the same. With
+    /// σ = 1 (no credit for a partly visible pair) every such part would be split.
+    #[test]
+    fn a_partly_visible_source_is_split_only_while_its_size_is_most_of_the_error() {
+        let quads = tile_under_light(4.0, true);
         let geo = crate::three_d::projection::Geometry::new(&quads);
         let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
         let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-4);
