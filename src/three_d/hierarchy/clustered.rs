@@ -21,6 +21,8 @@
 //! the link's mean, which is wrong by the sampling error of the visible fraction V from n rays
 //! and by V's correlation with the kernel over the pair, so σ = d / (d + dist) + √(V(1 − V)/n),
 //! and splitting the source lowers only the first term (the second adds up over its parts).
+//! A pair none of whose n rays got through has σ = 3/n, the rays' bound on what they missed
+//! ([`crate::three_d::visibility::unseen_bound`]).
 //! The weights w_R and tolerances are those of the element links' oracle (with w_R = 1 the Cornell box
 //! made of meshes came out 1 % dark on its ceiling). When err is above the tolerance, the end
 //! with the larger box is split: a cluster into its two children, an element into its four; a

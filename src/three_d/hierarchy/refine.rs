@@ -761,6 +761,27 @@ mod tests {
         }
     }
 
+    /// A 4 × 4 floor (index 0) under a 4 × 4 light 3 above it (index 2), with `between`
+    /// (index 1) standing on the floor or hanging between them.
+    fn floor_under_light(between: serde_json::Value) -> Vec<crate::scene::Quad> {
+        patches(serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "floor", "corners": [[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0]],
+             "reflectance": 0.5},
+            between,
+            {"name": "light", "corners": [[0, 0, 3], [0, 4, 3], [4, 4, 3], [4, 0, 3]],
+             "reflectance": 0.0, "emission": 1.0}
+        ]}}))
+    }
+
+    /// [`floor_under_light`] with a wall standing on the floor, its foot a line at a quarter
+    /// of the floor (x = 1, y from 1 to 3), 2 high.
+    fn wall_on_floor_under_light() -> Vec<crate::scene::Quad> {
+        floor_under_light(
+            serde_json::json!({"name": "wall", "corners": [[1, 1, 0], [1, 3, 0], [1, 3, 2], [1, 1, 2]],
+            "reflectance": 0.5}),
+        )
+    }
+
     /// A closed unit cube of six faces facing in, its ceiling (index 1) emitting.
     fn cube() -> Vec<crate::scene::Quad> {
         let face = |name: &str, c: [[f64; 3]; 4], e: f64| serde_json::json!({"name": name, "corners": c, "reflectance": 0.5, "emission": e});
@@ -782,15 +803,7 @@ mod tests {
     /// that share it is not. The floor's half beyond the line is not at it.
     #[test]
     fn a_receiver_at_a_contact_line_gets_a_share_of_the_tolerance() {
-        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
-            {"name": "floor", "corners": [[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0]],
-             "reflectance": 0.5},
-            {"name": "wall", "corners": [[1, 1, 0], [1, 3, 0], [1, 3, 2], [1, 1, 2]],
-             "reflectance": 0.5},
-            {"name": "light", "corners": [[0, 0, 3], [0, 4, 3], [4, 4, 3], [4, 0, 3]],
-             "reflectance": 0.0, "emission": 1.0}
-        ]}});
-        let quads = &patches(doc);
+        let quads = &wall_on_floor_under_light();
         let geo = Geometry::new(quads);
         let mut h = Hierarchy::new(
             &geo,
@@ -920,15 +933,7 @@ mod tests {
     /// cannot be split (a mesh's triangles are most often such).
     #[test]
     fn pairs_of_large_pieces_get_more_rays() {
-        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
-            {"name": "floor", "corners": [[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0]],
-             "reflectance": 0.5},
-            {"name": "wall", "corners": [[1, 1, 0], [1, 3, 0], [1, 3, 2], [1, 1, 2]],
-             "reflectance": 0.5},
-            {"name": "light", "corners": [[0, 0, 3], [0, 4, 3], [4, 4, 3], [4, 0, 3]],
-             "reflectance": 0.0, "emission": 1.0}
-        ]}});
-        let quads = &patches(doc);
+        let quads = &wall_on_floor_under_light();
         let geo = Geometry::new(quads);
         let rays = |h: &Hierarchy, r: u32, s: u32| {
             let (verdict, rays) = h.judge(r, s, h.estimate(r, s));
@@ -988,15 +993,10 @@ mod tests {
     /// not by all of it: at the top level, 3/256.
     #[test]
     fn a_hidden_pair_is_judged_by_what_its_rays_may_have_missed() {
-        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
-            {"name": "floor", "corners": [[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0]],
-             "reflectance": 0.5},
-            {"name": "board", "corners": [[-2, -2, 1], [6, -2, 1], [6, 6, 1], [-2, 6, 1]],
-             "reflectance": 0.5},
-            {"name": "light", "corners": [[0, 0, 3], [0, 4, 3], [4, 4, 3], [4, 0, 3]],
-             "reflectance": 0.0, "emission": 1.0}
-        ]}});
-        let quads = &patches(doc);
+        let quads = &floor_under_light(
+            serde_json::json!({"name": "board", "corners": [[-2, -2, 1], [6, -2, 1], [6, 6, 1], [-2, 6, 1]],
+            "reflectance": 0.5}),
+        );
         let geo = Geometry::new(quads);
         let sizing = Sizing::new(&geo.quads, Some(0.5), None);
         let mut h = Hierarchy::new(&geo, quads, 0, sizing, 1e-3);
