@@ -96,10 +96,10 @@ def box(o, lo, hi, bottom=False, n=1):
     (x0, y0, z0), (x1, y1, z1) = lo, hi
     dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
     grid(o, [x0, y1, z0], [0, 0, dz], [dx, 0, 0], n, n)  # top (+y)
-    grid(o, [x0, y0, z0], [dx, 0, 0], [0, dy, 0], n, n)  # front (-z)
-    grid(o, [x1, y0, z1], [-dx, 0, 0], [0, dy, 0], n, n)  # back (+z)
-    grid(o, [x0, y0, z1], [0, 0, -dz], [0, dy, 0], n, n)  # -x
-    grid(o, [x1, y0, z0], [0, 0, dz], [0, dy, 0], n, n)  # +x
+    grid(o, [x0, y0, z0], [0, dy, 0], [dx, 0, 0], n, n)  # front (-z)
+    grid(o, [x1, y0, z1], [0, dy, 0], [-dx, 0, 0], n, n)  # back (+z)
+    grid(o, [x0, y0, z1], [0, dy, 0], [0, 0, -dz], n, n)  # -x
+    grid(o, [x1, y0, z0], [0, dy, 0], [0, 0, dz], n, n)  # +x
     if bottom:
         grid(o, [x0, y0, z0], [dx, 0, 0], [0, 0, dz], n, n)
 
@@ -142,20 +142,20 @@ def room(o):
     o.start("wall-west", "wall-paint")  # x = 0, facing +x, with the window's opening
     s0, s1, t0, t1 = window
     grid(o, [0, 0, D], [0, 0, -D], [0, H, 0], 20, 20, hole=lambda s, t: s0 < s < s1 and t0 < t < t1)
-    # the pane a little outside the wall, facing in; the frame around the opening
+    # the pane fills the opening, facing in; the frame around it and its bars stand on it
     z0, z1, y0, y1 = D * (1 - s1), D * (1 - s0), H * t0, H * t1
     o.start("window", "daylight")
-    grid(o, [-0.02, y0, z1], [0, 0, z0 - z1], [0, y1 - y0, 0], 8, 8)
+    grid(o, [0.0, y0, z1], [0, 0, z0 - z1], [0, y1 - y0, 0], 8, 8)
     o.start("window-frame", "window-white")
     f = 0.05
-    box(o, [0.0, y0 - f, z0 - f], [0.06, y0, z1 + f])
-    box(o, [0.0, y1, z0 - f], [0.06, y1 + f, z1 + f])
-    box(o, [0.0, y0, z0 - f], [0.06, y1, z0])
-    box(o, [0.0, y0, z1], [0.06, y1, z1 + f])
+    box(o, [0.0, y0 - f, z0 - f], [0.06, y0, z1 + f], bottom=True)
+    box(o, [0.0, y1, z0 - f], [0.06, y1 + f, z1 + f], bottom=True)
+    box(o, [0.0, y0, z0 - f], [0.06, y1, z0], bottom=True)
+    box(o, [0.0, y0, z1], [0.06, y1, z1 + f], bottom=True)
     zm, ym = (z0 + z1) / 2, (y0 + y1) / 2
-    box(o, [0.0, y0, zm - 0.02], [0.04, y1, zm + 0.02])
-    box(o, [0.0, ym - 0.02, z0], [0.04, ym + 0.02, zm - 0.02])
-    box(o, [0.0, ym - 0.02, zm + 0.02], [0.04, ym + 0.02, z1])
+    box(o, [0.0, y0, zm - 0.02], [0.04, y1, zm + 0.02], bottom=True)
+    box(o, [0.0, ym - 0.02, z0], [0.04, ym + 0.02, zm - 0.02], bottom=True)
+    box(o, [0.0, ym - 0.02, zm + 0.02], [0.04, ym + 0.02, z1], bottom=True)
 
 
 def table(o, cx, cz):

@@ -566,7 +566,7 @@ pub fn meets(line: &[[f64; 2]; 2], s: [f64; 2], t: [f64; 2]) -> bool {
 
 /// Whether the point (s, t) of surface `i` is covered: five rays over its hemisphere all
 /// meet the back of a surface first.
-fn covered_at(quads: &[Parallelogram], bvh: &Bvh, i: usize, s: f64, t: f64) -> bool {
+pub(crate) fn covered_at(quads: &[Parallelogram], bvh: &Bvh, i: usize, s: f64, t: f64) -> bool {
     let q = &quads[i];
     let n = q.n;
     let a = normalize(q.e1);
