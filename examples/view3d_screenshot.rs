@@ -11,7 +11,8 @@
 //! ```
 //!
 //! The settings (third argument, `{}` for none) are merged into the document's top-level
-//! objects (`solver`, `output`) before it is submitted. The README's picture of the 3D view is
+//! objects (`solver`, `output`) before it is submitted, written back without indentation (the
+//! page sends the text as it stands, and a server takes at most `--max-body-bytes` of it). The README's picture of the 3D view is
 //! made this way (its command is in the README).
 
 use fantoccini::{ClientBuilder, Locator};
@@ -97,18 +98,36 @@ async fn shoot(
             "const d = JSON.parse(document.getElementById('doc').value); \
              for (const [k, v] of Object.entries(arguments[0])) \
                d[k] = (typeof v === 'object' && !Array.isArray(v)) ? Object.assign(d[k] || {}, v) : v; \
-             document.getElementById('doc').value = JSON.stringify(d, null, 2);",
+             const doc = document.getElementById('doc'); \
+             doc.value = JSON.stringify(d); \
+             doc.dispatchEvent(new Event('input'));",
             vec![settings.clone()],
         )
         .await?;
     client.find(Locator::Id("submit")).await?.click().await?;
+    // the 3D view, or what the page says went wrong (a refused document, a failed job)
     wait(
         &client,
         "the 3D view",
         3600,
-        "return (document.getElementById('view3d').dataset.state || '') !== ''",
+        "return (document.getElementById('view3d').dataset.state || '') !== '' \
+           || document.getElementById('errors').children.length > 0 \
+           || document.getElementById('doc-error').textContent !== '' \
+           || document.getElementById('failure').textContent !== ''",
     )
     .await?;
+    let trouble = client
+        .execute(
+            "return [...document.getElementById('errors').children].map(e => e.textContent) \
+               .concat([document.getElementById('doc-error').textContent, \
+                        document.getElementById('failure').textContent]) \
+               .filter(t => t !== '').join('; ')",
+            vec![],
+        )
+        .await?;
+    if let Some(t) = trouble.as_str().filter(|t| !t.is_empty()) {
+        return Err(format!("the page says: {t}").into());
+    }
     let state = client
         .execute(
             "return document.getElementById('view3d').dataset.state",

@@ -190,12 +190,16 @@ fn backlit(d: &crate::scene::ThreeD) -> Vec<Warning> {
         .map(|q| {
             let (rs, rt) = q.emission_region;
             let e = q.material.emission.iter().sum::<f64>() / 3.0;
-            let region = if q.triangle { 1.0 } else { (rs[1] - rs[0]) * (rt[1] - rt[0]) };
+            let region = if q.triangle {
+                1.0
+            } else {
+                (rs[1] - rs[0]) * (rt[1] - rt[0])
+            };
             e.max(0.0) * region * Parallelogram::of(q).area
         })
         .collect();
     let total: f64 = power.iter().sum();
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return Vec::new();
     }
     let quads: Vec<Parallelogram> = d.patches.iter().map(Parallelogram::of).collect();
@@ -221,7 +225,11 @@ fn backlit(d: &crate::scene::ThreeD) -> Vec<Warning> {
         if q.triangle && s + t > 1.0 {
             (s, t) = (1.0 - s, 1.0 - t);
         }
-        let helper = if p.n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+        let helper = if p.n[0].abs() < 0.9 {
+            [1.0, 0.0, 0.0]
+        } else {
+            [0.0, 1.0, 0.0]
+        };
         let x = normalize(cross(p.n, helper));
         let y = cross(p.n, x);
         let (r, phi) = (c.sqrt(), std::f64::consts::TAU * e);

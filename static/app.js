@@ -29,6 +29,22 @@ const value = (x) => (rawJSON && JSON.isRawJSON(x)) ? Number(x.rawJSON) : x;
 const exact = (text) => JSON.parse(text, (k, v, ctx) =>
   (typeof v === "number" && !Number.isSafeInteger(v) && ctx && /^-?[0-9]+$/.test(ctx.source || "")) ? BigInt(ctx.source) : v);
 
+// A document as text: an object one key a line, indented; an array of numbers, or of arrays
+// of numbers (corners, a mesh's positions and triangles), on one line. An imported model of
+// 10⁴ triangles so stays a few hundred kB, within what the server takes (`max_body_bytes`),
+// not megabytes of indentation.
+function written(v, pad = "") {
+  const leaf = (x) => x === null || typeof x !== "object" || (rawJSON && JSON.isRawJSON(x));
+  if (leaf(v) || (Array.isArray(v) && v.every((x) => leaf(x) || (Array.isArray(x) && x.every(leaf)))))
+    return JSON.stringify(v);
+  const inner = pad + "  ";
+  const lines = Array.isArray(v)
+    ? v.map((x) => inner + written(x, inner))
+    : Object.keys(v).map((k) => `${inner}${JSON.stringify(k)}: ${written(v[k], inner)}`);
+  const [open, close] = Array.isArray(v) ? ["[", "]"] : ["{", "}"];
+  return lines.length ? `${open}\n${lines.join(",\n")}\n${pad}${close}` : open + close;
+}
+
 const DEFAULTS = { method: "projection", basis: "wavelet", order: 1, resolution: 8 };
 
 async function pickScene(name) {
@@ -40,7 +56,15 @@ async function pickScene(name) {
 // A document into the text area, and its solver into the controls.
 function useDocument(text) {
   $("doc").value = text;
-  const doc = JSON.parse(text);
+  showSolver(text);
+}
+
+// The document's solver into the controls (when the text is a JSON object; while it is being
+// typed and is not, the controls keep what they show).
+function showSolver(text) {
+  let doc;
+  try { doc = JSON.parse(text); } catch (_) { return; }
+  if (typeof doc !== "object" || doc === null || Array.isArray(doc)) return;
   const s = doc.solver || {};
   for (const k of Object.keys(DEFAULTS)) $(k).value = s[k] ?? DEFAULTS[k];
   const keep = s.keep;
@@ -75,7 +99,7 @@ async function openModel(files) {
     return;
   }
   $("scene-select").value = "";
-  useDocument(JSON.stringify(body, null, 2));
+  useDocument(written(body));
 }
 
 function clearErrors() {
@@ -127,7 +151,7 @@ function documentText() {
   }
   if (!changed) return text;
   doc.solver = solver;
-  const out = JSON.stringify(doc, null, 2);
+  const out = written(doc);
   $("doc").value = out;
   return out;
 }
@@ -285,5 +309,8 @@ async function showModel(status) {
 
 $("scene-select").addEventListener("change", (e) => pickScene(e.target.value));
 $("submit").addEventListener("click", submit);
+// an edit of the document's solver by hand shows in the controls, so that Solve sends it as
+// typed (the controls would otherwise write their older values over it)
+$("doc").addEventListener("input", (e) => showSolver(e.target.value));
 $("model-file").addEventListener("change", (e) => openModel([...e.target.files]));
 loadScenes();

@@ -200,9 +200,23 @@ async fn bad_bodies_get_their_own_status_as_problem_documents() {
         let (st, h, b) = call(&router, req).await;
         problem(st, &h, &b, StatusCode::UNSUPPORTED_MEDIA_TYPE);
         // 413: larger than max_body_bytes, with and without a Content-Length.
+        // Each says which limit, and how to raise it.
         let big = json!({"scene": {"kind": "fredholm", "name": "x".repeat(5000)}}).to_string();
+        let too_large = |p: &Value| {
+            let detail = p["detail"].as_str().unwrap();
+            assert!(
+                detail.contains("max_body_bytes (4096 bytes)")
+                    && detail.contains("--max-body-bytes"),
+                "{detail}"
+            );
+        };
         let (st, h, b) = call(&router, post(uri, big.clone())).await;
-        problem(st, &h, &b, StatusCode::PAYLOAD_TOO_LARGE);
+        too_large(&problem(st, &h, &b, StatusCode::PAYLOAD_TOO_LARGE));
+        let mut req = post(uri, big.clone());
+        req.headers_mut()
+            .insert(header::CONTENT_LENGTH, big.len().into());
+        let (st, h, b) = call(&router, req).await;
+        too_large(&problem(st, &h, &b, StatusCode::PAYLOAD_TOO_LARGE));
         let chunks = futures_util::stream::iter(
             big.into_bytes()
                 .chunks(1000)
@@ -210,7 +224,7 @@ async fn bad_bodies_get_their_own_status_as_problem_documents() {
                 .collect::<Vec<_>>(),
         );
         let (st, h, b) = call(&router, post(uri, Body::from_stream(chunks))).await;
-        problem(st, &h, &b, StatusCode::PAYLOAD_TOO_LARGE);
+        too_large(&problem(st, &h, &b, StatusCode::PAYLOAD_TOO_LARGE));
         // 422: every path at fault.
         let mut doc = scene("flatland-parallel");
         doc["scene"]["surfaces"][1]["reflectance"] = json!(1.5);

@@ -546,13 +546,17 @@ async fn the_page_opens_the_obj_cornell_box_solves_it_and_turns_it_in_3d() {
         },
     )
     .await;
-    // then, as a user would in the editor, the camera of the hand-written box
+    // then, as a user would in the editor, the camera of the hand-written box and order 0
+    // (an edit, with its input event, of a field that a control also shows)
     let camera = scene("cornell-box")["output"]["camera"].clone();
     client
         .execute(
             "const d = JSON.parse(document.getElementById('doc').value); \
              d.output = Object.assign(d.output || {}, {camera: arguments[0]}); \
-             document.getElementById('doc').value = JSON.stringify(d, null, 2);",
+             d.solver = Object.assign(d.solver || {}, {order: 0}); \
+             const doc = document.getElementById('doc'); \
+             doc.value = JSON.stringify(d, null, 2); \
+             doc.dispatchEvent(new Event('input'));",
             vec![camera],
         )
         .await
@@ -564,6 +568,17 @@ async fn the_page_opens_the_obj_cornell_box_solves_it_and_turns_it_in_3d() {
         .click()
         .await
         .unwrap();
+    // what was typed is what is sent (the page sends the text area as it stands after Solve):
+    // the order control followed the edit instead of writing its older value over it
+    let sent = client
+        .execute(
+            "return [JSON.parse(document.getElementById('doc').value).solver.order, \
+                     document.getElementById('order').value]",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(sent, json!([0, "0"]));
     until("the 3D view", Duration::from_secs(180), || async {
         let v = client
             .execute(

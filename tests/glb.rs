@@ -374,3 +374,50 @@ fn a_mesh_scene_as_scene_glb() {
         assert_eq!(report["issues"]["numErrors"], 0, "{:#}", report["issues"]);
     }
 }
+
+/// The baked example `scenes/models/room.glb` (the README's furnished room, solved through the
+/// page): validator clean, and made of the triangles of `scenes/models/room.obj`, every one,
+/// one node per surface of its import, named after it. A change to the model that is not
+/// baked again fails here.
+#[test]
+fn the_baked_room_is_the_model_and_valid() {
+    let models = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/models");
+    let glb = std::fs::read(format!("{models}/room.glb")).unwrap();
+    if let Some(report) = validate(&glb, "room.glb") {
+        assert_eq!(report["issues"]["numErrors"], 0, "{report}");
+        assert_eq!(report["issues"]["numWarnings"], 0, "{report}");
+    }
+    let obj = std::fs::read(format!("{models}/room.obj")).unwrap();
+    let files = |name: &str| std::fs::read(format!("{models}/{name}")).ok();
+    let model = wavrad::import::Model {
+        file: "room.obj",
+        format: wavrad::import::Format::from_file_name("room.obj").unwrap(),
+        bytes: &obj,
+    };
+    let imported =
+        wavrad::import::import(model, &files, &wavrad::scene::Limits::default()).unwrap();
+    let names: Vec<&str> = imported.document["scene"]["surfaces"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    let gltf = gltf::Gltf::from_slice(&glb).unwrap();
+    let meshes: Vec<(String, usize)> = gltf
+        .default_scene()
+        .unwrap()
+        .nodes()
+        .filter_map(|n| {
+            let m = n.mesh()?;
+            let triangles = m
+                .primitives()
+                .map(|p| p.indices().map_or(0, |a| a.count()) / 3)
+                .sum();
+            Some((n.name().unwrap_or("").to_string(), triangles))
+        })
+        .collect();
+    let baked: Vec<&str> = meshes.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(baked, names);
+    let triangles: usize = meshes.iter().map(|(_, t)| t).sum();
+    assert_eq!(triangles, imported.triangles);
+}

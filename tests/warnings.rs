@@ -192,24 +192,91 @@ fn a_box_of_walls_that_meet_at_their_edges_is_not_a_warning() {
 /// A closed unit-cube room (walls facing in) with a light patch under its ceiling and a box
 /// on its floor: five faces, each a surface, facing out (`inward`: false) or in.
 fn room_with_a_box(inward: bool) -> Value {
-    let face = |c: [[f64; 3]; 4], name: &str, emission: f64| {
-        json!({"name": name, "corners": c, "reflectance": 0.5, "emission": emission})
-    };
+    let face = |c: [[f64; 3]; 4], name: &str, emission: f64| json!({"name": name, "corners": c, "reflectance": 0.5, "emission": emission});
     let mut surfaces = vec![
-        face([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 0.0, 0.0]], "floor", 0.0),
-        face([[0.0, 1.0, 0.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0]], "ceiling", 0.0),
-        face([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]], "south", 0.0),
-        face([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1.0, 0.0, 1.0]], "north", 0.0),
-        face([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]], "west", 0.0),
-        face([[1.0, 0.0, 0.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0], [1.0, 1.0, 0.0]], "east", 0.0),
-        face([[0.4, 0.99, 0.4], [0.6, 0.99, 0.4], [0.6, 0.99, 0.6], [0.4, 0.99, 0.6]], "light", 10.0),
+        face(
+            [
+                [0.0, 0.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [1.0, 0.0, 1.0],
+                [1.0, 0.0, 0.0],
+            ],
+            "floor",
+            0.0,
+        ),
+        face(
+            [
+                [0.0, 1.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [1.0, 1.0, 1.0],
+                [0.0, 1.0, 1.0],
+            ],
+            "ceiling",
+            0.0,
+        ),
+        face(
+            [
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [0.0, 1.0, 0.0],
+            ],
+            "south",
+            0.0,
+        ),
+        face(
+            [
+                [0.0, 0.0, 1.0],
+                [0.0, 1.0, 1.0],
+                [1.0, 1.0, 1.0],
+                [1.0, 0.0, 1.0],
+            ],
+            "north",
+            0.0,
+        ),
+        face(
+            [
+                [0.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 1.0, 1.0],
+                [0.0, 0.0, 1.0],
+            ],
+            "west",
+            0.0,
+        ),
+        face(
+            [
+                [1.0, 0.0, 0.0],
+                [1.0, 0.0, 1.0],
+                [1.0, 1.0, 1.0],
+                [1.0, 1.0, 0.0],
+            ],
+            "east",
+            0.0,
+        ),
+        face(
+            [
+                [0.4, 0.99, 0.4],
+                [0.6, 0.99, 0.4],
+                [0.6, 0.99, 0.6],
+                [0.4, 0.99, 0.6],
+            ],
+            "light",
+            10.0,
+        ),
     ];
     // the box [0.3, 0.7] × [0, 0.3] × [0.3, 0.7], each face as seen from outside
     let (a, b, h) = (0.3, 0.7, 0.3);
     let mut faces = vec![
         ([[a, h, a], [a, h, b], [b, h, b], [b, h, a]], "box-top"),
-        ([[a, 0.0, a], [a, h, a], [b, h, a], [b, 0.0, a]], "box-south"),
-        ([[a, 0.0, b], [b, 0.0, b], [b, h, b], [a, h, b]], "box-north"),
+        (
+            [[a, 0.0, a], [a, h, a], [b, h, a], [b, 0.0, a]],
+            "box-south",
+        ),
+        (
+            [[a, 0.0, b], [b, 0.0, b], [b, h, b], [a, h, b]],
+            "box-north",
+        ),
         ([[a, 0.0, a], [a, 0.0, b], [a, h, b], [a, h, a]], "box-west"),
         ([[b, 0.0, a], [b, h, a], [b, h, b], [b, 0.0, b]], "box-east"),
     ];

@@ -115,8 +115,12 @@ pub fn app(state: AppState) -> Router {
             config.max_concurrent_requests,
         ))
         .timeout(config.request_timeout());
+    let max_body = config.max_body_bytes;
     routes::router(state.clone())
-        .layer(RequestBodyLimitLayer::new(config.max_body_bytes))
+        .layer(RequestBodyLimitLayer::new(max_body))
+        .layer(axum::middleware::map_response(move |res| async move {
+            problem::body_limit(res, max_body)
+        }))
         .merge(routes::import_router(state.clone()))
         .layer(limits)
         .merge(routes::probes(state))

@@ -152,6 +152,35 @@ impl IntoResponse for Problem {
 
 /// Middleware: an error answer (4xx, 5xx) that is not already a problem document becomes one,
 /// keeping its status and its `Retry-After`, and its text as `detail`.
+/// The body limit's own 413 (a request whose `Content-Length` is over the limit is refused
+/// before its handler runs, in plain text) as the handlers answer it: a problem that names the
+/// limit and how to raise it.
+pub fn body_limit(res: axum::response::Response, limit: usize) -> axum::response::Response {
+    let is_problem = res
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v.as_bytes().starts_with(PROBLEM_JSON.as_bytes()));
+    if res.status() != StatusCode::PAYLOAD_TOO_LARGE || is_problem {
+        return res;
+    }
+    Problem::new(
+        StatusCode::PAYLOAD_TOO_LARGE,
+        too_large("max_body_bytes", limit),
+    )
+    .into_response()
+}
+
+/// What a 413 says: the limit (`setting`, as `wavrad serve` names it with dashes), and how to
+/// raise it.
+pub fn too_large(setting: &str, limit: usize) -> String {
+    format!(
+        "the body is larger than {setting} ({limit} bytes); a server started with \
+         `wavrad serve --{} N` (or WAVRAD_{}) takes more",
+        setting.replace('_', "-"),
+        setting.to_ascii_uppercase()
+    )
+}
+
 pub async fn problem_everywhere(res: axum::response::Response) -> axum::response::Response {
     let status = res.status();
     let is_problem = res

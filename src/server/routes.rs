@@ -103,7 +103,7 @@ pub async fn read_document(
         if text.to_ascii_lowercase().contains("length limit") {
             Problem::new(
                 StatusCode::PAYLOAD_TOO_LARGE,
-                format!("the body is larger than max_body_bytes ({limit} bytes)"),
+                crate::server::problem::too_large("max_body_bytes", limit),
             )
         } else {
             Problem::new(
@@ -828,7 +828,7 @@ async fn read_body(body: Body, limit: usize, setting: &str) -> Result<axum::body
         if text.to_ascii_lowercase().contains("length limit") {
             Problem::new(
                 StatusCode::PAYLOAD_TOO_LARGE,
-                format!("the body is larger than {setting} ({limit} bytes)"),
+                crate::server::problem::too_large(setting, limit),
             )
         } else {
             Problem::new(
