@@ -13,7 +13,7 @@ mod support;
 mod tracer;
 
 use serde_json::{json, Value};
-use tracer::{reference, Tracer};
+use tracer::{reference, Gaps, Tracer};
 use wavrad::job;
 use wavrad::progress::Silent;
 use wavrad::scene::{parse_value, Limits};
@@ -22,23 +22,10 @@ fn gallery(name: &str) -> Value {
     support::scene_file(&format!("gallery/{name}"))
 }
 
-/// The largest gaps of a solution against the reference, beyond `z` of its standard errors:
-/// per surface mean and per cell, relative to the reference, over the non-emitting surfaces
-/// and the channels; with the name of the surface where each is found.
-struct Gaps {
-    surface: (f64, String),
-    cell: (f64, String),
-}
-
 fn gaps(doc: &Value, per_side: usize, z: f64) -> Gaps {
-    let tracer = Tracer::new(doc);
     let want = reference(doc, per_side);
     let j = parse_value(doc, &Limits::default()).expect("valid document");
     let out = job::run(&j, &Silent).expect("solves");
-    let mut g = Gaps {
-        surface: (0.0, String::new()),
-        cell: (0.0, String::new()),
-    };
     eprintln!(
         "{}",
         out.result
@@ -48,35 +35,7 @@ fn gaps(doc: &Value, per_side: usize, z: f64) -> Gaps {
             .collect::<Vec<_>>()
             .join(", ")
     );
-    let worst = |slot: &mut (f64, String), gap: f64, name: &str| {
-        if gap > slot.0 {
-            *slot = (gap, name.to_string());
-        }
-    };
-    for ((s, cells), q) in out.result.surfaces.iter().zip(&want).zip(&tracer.quads) {
-        if q.emission.iter().any(|&e| e > 0.0) {
-            continue;
-        }
-        let m = cells.len() as f64;
-        for c in 0..3 {
-            let mean: f64 = cells.iter().map(|(v, _)| v[c]).sum::<f64>() / m;
-            let err: f64 = cells.iter().map(|(_, e)| e[c] * e[c]).sum::<f64>().sqrt() / m;
-            let beyond = ((s.mean[c] - mean).abs() - z * err).max(0.0) / mean;
-            if c == 0 {
-                eprintln!(
-                    "  {:14} {:+.2} % ± {:.2} %",
-                    s.name,
-                    100.0 * (s.mean[c] / mean - 1.0),
-                    100.0 * err / mean
-                );
-            }
-            worst(&mut g.surface, beyond, &s.name);
-            for (got, (v, e)) in s.cells.iter().zip(cells) {
-                let beyond = ((got[c] - v[c]).abs() - z * e[c]).max(0.0) / v[c];
-                worst(&mut g.cell, beyond, &s.name);
-            }
-        }
-    }
+    let g = Tracer::new(doc).gaps(&out.result.surfaces, &want, z);
     eprintln!(
         "{}: worst surface mean {:.2} % ({}), worst cell {:.2} % ({}), {} links",
         doc["scene"]["name"],

@@ -371,6 +371,60 @@ impl Tracer {
 }
 
 /// A solution against the reference.
+/// The largest gaps of a solution against the reference, beyond `z` of its standard errors:
+/// per surface mean and per cell, relative to the reference, over the non-emitting surfaces
+/// and the channels; with the name of the surface where each is found.
+pub struct Gaps {
+    pub surface: (f64, String),
+    pub cell: (f64, String),
+}
+
+impl Tracer {
+    /// [`Gaps`] of `surfaces` (a result's) against `reference` (cell means of
+    /// [`reference`]), printing each surface's first channel.
+    pub fn gaps(
+        &self,
+        surfaces: &[wavrad::result::SurfaceResult],
+        reference: &[Vec<(V3, V3)>],
+        z: f64,
+    ) -> Gaps {
+        let mut g = Gaps {
+            surface: (0.0, String::new()),
+            cell: (0.0, String::new()),
+        };
+        let worst = |slot: &mut (f64, String), gap: f64, name: &str| {
+            if gap > slot.0 {
+                *slot = (gap, name.to_string());
+            }
+        };
+        for ((s, cells), q) in surfaces.iter().zip(reference).zip(&self.quads) {
+            if q.emission.iter().any(|&e| e > 0.0) {
+                continue;
+            }
+            let m = cells.len() as f64;
+            for c in 0..3 {
+                let mean: f64 = cells.iter().map(|(v, _)| v[c]).sum::<f64>() / m;
+                let err: f64 = cells.iter().map(|(_, e)| e[c] * e[c]).sum::<f64>().sqrt() / m;
+                let beyond = ((s.mean[c] - mean).abs() - z * err).max(0.0) / mean;
+                if c == 0 {
+                    eprintln!(
+                        "  {:14} {:+.2} % ± {:.2} %",
+                        s.name,
+                        100.0 * (s.mean[c] / mean - 1.0),
+                        100.0 * err / mean
+                    );
+                }
+                worst(&mut g.surface, beyond, &s.name);
+                for (got, (v, e)) in s.cells.iter().zip(cells) {
+                    let beyond = ((got[c] - v[c]).abs() - z * e[c]).max(0.0) / v[c];
+                    worst(&mut g.cell, beyond, &s.name);
+                }
+            }
+        }
+        g
+    }
+}
+
 pub struct Comparison {
     /// Per surface (not emitting): name, the largest |solver / reference − 1| over the
     /// channels, and that channel's relative standard error of the reference.
