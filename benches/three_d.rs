@@ -1,6 +1,6 @@
 //! The 3D speed goals: the Cornell box by the hierarchical method (solve, and solve + a
 //! 512 × 512 image), the gallery's rooms with 3 × 3 and 7 × 7 boxes at the document defaults,
-//! visibility rays through the BVH, and projection against hierarchical on the parallel plates
+//! visibility rays through the BVH, building the BVHs of 10⁵ triangles, and projection against hierarchical on the parallel plates
 //! as the resolution grows. Figures in `benches/README.md`.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
@@ -120,5 +120,41 @@ fn growth(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, cornell_box, gallery, rays, growth);
+/// Building the BVHs of a flat mesh of 100 352 triangles (a 224 × 224 grid of squares, each
+/// two triangles) over a plane, the worst case of the occluders' test: every triangle has the
+/// whole scene on its front.
+fn bvh_build(c: &mut Criterion) {
+    let n = 224;
+    let corner = |i: usize, j: usize| [i as f64 / n as f64 * 10.0, 0.0, j as f64 / n as f64 * 10.0];
+    let mut geo = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            let (a, b, c, d) = (
+                corner(i, j),
+                corner(i, j + 1),
+                corner(i + 1, j),
+                corner(i + 1, j + 1),
+            );
+            // (p0, p1, p2) as a triangle patch: corners p0, p1, p1 + p2 − p0, p2
+            for [p0, p1, p2] in [[a, b, d], [a, d, c]] {
+                let far = [0, 1, 2].map(|k| p1[k] + p2[k] - p0[k]);
+                let mut q = Parallelogram::new(&[p0, p1, far, p2]);
+                q.tri = true;
+                geo.push(q);
+            }
+        }
+    }
+    let mut g = c.benchmark_group("bvh");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(geo.len() as u64));
+    g.bench_function("build, 100 352 coplanar triangles", |b| {
+        b.iter(|| black_box(Bvh::new(&geo)))
+    });
+    g.bench_function("occluders, 100 352 coplanar triangles", |b| {
+        b.iter(|| black_box(Bvh::occluders(&geo)))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, cornell_box, gallery, rays, growth, bvh_build);
 criterion_main!(benches);
