@@ -251,7 +251,7 @@ fn backlit(d: &crate::scene::ThreeD) -> Vec<Warning> {
     }
     back.iter()
         .enumerate()
-        .filter(|&(_, &n)| n as f64 >= BACKLIT_SHARE * sent as f64)
+        .filter(|&(_, &n)| n > 0 && n as f64 >= BACKLIT_SHARE * sent as f64)
         .map(|(i, &n)| Warning {
             paths: vec![path(i)],
             message: format!(

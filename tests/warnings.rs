@@ -305,6 +305,22 @@ fn light_on_the_back_of_a_surface_is_a_warning() {
 }
 
 #[test]
+fn a_light_shut_in_a_box_is_not_a_warning() {
+    // the light moved into the (closed, outward) box, facing up under its top: every ray
+    // meets the box from inside, where the light is covered (it sends nothing into the
+    // room), so no surface is said to take the light on its back
+    let mut doc = room_with_a_box(false);
+    doc["scene"]["surfaces"][6]["corners"] = json!([
+        [0.4, 0.1, 0.4],
+        [0.4, 0.1, 0.6],
+        [0.6, 0.1, 0.6],
+        [0.6, 0.1, 0.4]
+    ]);
+    let w = warnings(&doc);
+    assert!(w.is_empty(), "{w:?}");
+}
+
+#[test]
 fn no_example_scene_has_a_warning() {
     let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
     let files = [scenes.to_string(), format!("{scenes}/gallery")]
