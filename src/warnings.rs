@@ -184,10 +184,12 @@ fn backlit(d: &crate::scene::ThreeD) -> Vec<Warning> {
     use crate::three_d::bvh::Bvh;
     use crate::three_d::cover::covered_at;
     use crate::three_d::geometry::{add, cross, dot, normalize, scale, Parallelogram};
+    let quads: Vec<Parallelogram> = d.patches.iter().map(Parallelogram::of).collect();
     let power: Vec<f64> = d
         .patches
         .iter()
-        .map(|q| {
+        .zip(&quads)
+        .map(|(q, p)| {
             let (rs, rt) = q.emission_region;
             let e = q.material.emission.iter().sum::<f64>() / 3.0;
             let region = if q.triangle {
@@ -195,14 +197,13 @@ fn backlit(d: &crate::scene::ThreeD) -> Vec<Warning> {
             } else {
                 (rs[1] - rs[0]) * (rt[1] - rt[0])
             };
-            e.max(0.0) * region * Parallelogram::of(q).area
+            e.max(0.0) * region * p.area
         })
         .collect();
     let total: f64 = power.iter().sum();
     if total.is_nan() || total <= 0.0 {
         return Vec::new();
     }
-    let quads: Vec<Parallelogram> = d.patches.iter().map(Parallelogram::of).collect();
     let bvh = Bvh::new(&quads);
     let owners = d.owners();
     let mut back = vec![0usize; d.surfaces.len()];

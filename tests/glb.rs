@@ -9,6 +9,8 @@
 //! `WAVRAD_GLTF_VALIDATOR` (default `.ci/tools`, where `.ci/run` installs it). Without it the
 //! validation is skipped with a message on a developer's machine and fails when `CI` is set.
 
+mod support;
+
 use std::path::PathBuf;
 use std::process::Command;
 use wavrad::job::Outcome;
@@ -387,21 +389,9 @@ fn the_baked_room_is_the_model_and_valid() {
         assert_eq!(report["issues"]["numErrors"], 0, "{report}");
         assert_eq!(report["issues"]["numWarnings"], 0, "{report}");
     }
-    let obj = std::fs::read(format!("{models}/room.obj")).unwrap();
-    let files = |name: &str| std::fs::read(format!("{models}/{name}")).ok();
-    let model = wavrad::import::Model {
-        file: "room.obj",
-        format: wavrad::import::Format::from_file_name("room.obj").unwrap(),
-        bytes: &obj,
-    };
     let imported =
-        wavrad::import::import(model, &files, &wavrad::scene::Limits::default()).unwrap();
-    let names: Vec<&str> = imported.document["scene"]["surfaces"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["name"].as_str().unwrap())
-        .collect();
+        support::import_file(std::path::Path::new(&format!("{models}/room.obj"))).unwrap();
+    let names = support::surface_names(&imported.document);
     let gltf = gltf::Gltf::from_slice(&glb).unwrap();
     let meshes: Vec<(String, usize)> = gltf
         .default_scene()

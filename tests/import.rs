@@ -8,6 +8,7 @@
 #![allow(clippy::needless_range_loop)]
 
 mod common;
+mod support;
 
 use axum::body::{Body, Bytes};
 use axum::http::{header, HeaderMap, Request, StatusCode};
@@ -15,26 +16,13 @@ use axum::Router;
 use serde_json::{json, Value};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use support::{import_file, surface_names};
 use tower::ServiceExt;
 use wavrad::import::{import, Format, ImportError, Imported, Location, Model};
 use wavrad::scene::Limits;
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/import")
-}
-
-/// Imports a model file, reading the files it names from its folder.
-fn import_file(path: &Path) -> Result<Imported, ImportError> {
-    let bytes = std::fs::read(path).unwrap();
-    let folder = path.parent().unwrap().to_path_buf();
-    let files = move |name: &str| std::fs::read(folder.join(name)).ok();
-    let name = path.file_name().unwrap().to_string_lossy().to_string();
-    let model = Model {
-        file: &name,
-        format: Format::from_file_name(&name).unwrap(),
-        bytes: &bytes,
-    };
-    import(model, &files, &Limits::default())
 }
 
 /// Imports bytes with the given extra files.
@@ -275,10 +263,7 @@ fn the_example_room_imports_whole_with_its_lamp_and_window_as_lights() {
         .collect();
     assert_eq!(emitters, ["window", "lamp-shade"]);
     // an object of two materials is two surfaces, named after both
-    let names: Vec<&str> = surfaces
-        .iter()
-        .map(|s| s["name"].as_str().unwrap())
-        .collect();
+    let names = surface_names(&imported.document);
     for name in [
         "chair-1-beech",
         "chair-1-fabric-blue",
@@ -348,13 +333,7 @@ fn duplicate_names_get_a_suffix_and_materials_may_be_in_the_obj_itself() {
     let obj = "newmtl glow\nKd 0.2 0.2 0.2\nKe 1 1 1\n\
                o a\nusemtl glow\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\no b\nf 1 3 2\no a\nf 2 3 1\n";
     let imported = import_bytes("x.obj", obj.as_bytes(), &[]).unwrap();
-    let names: Vec<&str> = imported.document["scene"]["surfaces"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["name"].as_str().unwrap())
-        .collect();
-    assert_eq!(names, ["a", "b", "a-2"]);
+    assert_eq!(surface_names(&imported.document), ["a", "b", "a-2"]);
     assert_eq!(
         imported.document["scene"]["surfaces"][0]["emission"],
         json!([1.0, 1.0, 1.0])

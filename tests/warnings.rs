@@ -193,78 +193,22 @@ fn a_box_of_walls_that_meet_at_their_edges_is_not_a_warning() {
 /// on its floor: five faces, each a surface, facing out (`inward`: false) or in.
 fn room_with_a_box(inward: bool) -> Value {
     let face = |c: [[f64; 3]; 4], name: &str, emission: f64| json!({"name": name, "corners": c, "reflectance": 0.5, "emission": emission});
-    let mut surfaces = vec![
-        face(
-            [
-                [0.0, 0.0, 0.0],
-                [0.0, 0.0, 1.0],
-                [1.0, 0.0, 1.0],
-                [1.0, 0.0, 0.0],
-            ],
-            "floor",
-            0.0,
-        ),
-        face(
-            [
-                [0.0, 1.0, 0.0],
-                [1.0, 1.0, 0.0],
-                [1.0, 1.0, 1.0],
-                [0.0, 1.0, 1.0],
-            ],
-            "ceiling",
-            0.0,
-        ),
-        face(
-            [
-                [0.0, 0.0, 0.0],
-                [1.0, 0.0, 0.0],
-                [1.0, 1.0, 0.0],
-                [0.0, 1.0, 0.0],
-            ],
-            "south",
-            0.0,
-        ),
-        face(
-            [
-                [0.0, 0.0, 1.0],
-                [0.0, 1.0, 1.0],
-                [1.0, 1.0, 1.0],
-                [1.0, 0.0, 1.0],
-            ],
-            "north",
-            0.0,
-        ),
-        face(
-            [
-                [0.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-                [0.0, 1.0, 1.0],
-                [0.0, 0.0, 1.0],
-            ],
-            "west",
-            0.0,
-        ),
-        face(
-            [
-                [1.0, 0.0, 0.0],
-                [1.0, 0.0, 1.0],
-                [1.0, 1.0, 1.0],
-                [1.0, 1.0, 0.0],
-            ],
-            "east",
-            0.0,
-        ),
-        face(
-            [
-                [0.4, 0.99, 0.4],
-                [0.6, 0.99, 0.4],
-                [0.6, 0.99, 0.6],
-                [0.4, 0.99, 0.6],
-            ],
+    // the room's walls (facing in) and the light (facing down), as seen from their fronts
+    let (o, l, y) = (0.0, 1.0, 0.99);
+    let room = [
+        ([[o, o, o], [o, o, l], [l, o, l], [l, o, o]], "floor", 0.0),
+        ([[o, l, o], [l, l, o], [l, l, l], [o, l, l]], "ceiling", 0.0),
+        ([[o, o, o], [l, o, o], [l, l, o], [o, l, o]], "south", 0.0),
+        ([[o, o, l], [o, l, l], [l, l, l], [l, o, l]], "north", 0.0),
+        ([[o, o, o], [o, l, o], [o, l, l], [o, o, l]], "west", 0.0),
+        ([[l, o, o], [l, o, l], [l, l, l], [l, l, o]], "east", 0.0),
+        (
+            [[0.4, y, 0.4], [0.6, y, 0.4], [0.6, y, 0.6], [0.4, y, 0.6]],
             "light",
             10.0,
         ),
     ];
+    let mut surfaces: Vec<Value> = room.into_iter().map(|(c, n, e)| face(c, n, e)).collect();
     // the box [0.3, 0.7] × [0, 0.3] × [0.3, 0.7], each face as seen from outside
     let (a, b, h) = (0.3, 0.7, 0.3);
     let mut faces = vec![

@@ -150,17 +150,18 @@ impl IntoResponse for Problem {
     }
 }
 
-/// Middleware: an error answer (4xx, 5xx) that is not already a problem document becomes one,
-/// keeping its status and its `Retry-After`, and its text as `detail`.
+/// Whether an answer is already a problem document.
+fn is_problem(res: &axum::response::Response) -> bool {
+    res.headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v.as_bytes().starts_with(PROBLEM_JSON.as_bytes()))
+}
+
 /// The body limit's own 413 (a request whose `Content-Length` is over the limit is refused
 /// before its handler runs, in plain text) as the handlers answer it: a problem that names the
 /// limit and how to raise it.
 pub fn body_limit(res: axum::response::Response, limit: usize) -> axum::response::Response {
-    let is_problem = res
-        .headers()
-        .get(header::CONTENT_TYPE)
-        .is_some_and(|v| v.as_bytes().starts_with(PROBLEM_JSON.as_bytes()));
-    if res.status() != StatusCode::PAYLOAD_TOO_LARGE || is_problem {
+    if res.status() != StatusCode::PAYLOAD_TOO_LARGE || is_problem(&res) {
         return res;
     }
     Problem::new(
@@ -181,13 +182,11 @@ pub fn too_large(setting: &str, limit: usize) -> String {
     )
 }
 
+/// Middleware: an error answer (4xx, 5xx) that is not already a problem document becomes one,
+/// keeping its status and its `Retry-After`, and its text as `detail`.
 pub async fn problem_everywhere(res: axum::response::Response) -> axum::response::Response {
     let status = res.status();
-    let is_problem = res
-        .headers()
-        .get(header::CONTENT_TYPE)
-        .is_some_and(|v| v.as_bytes().starts_with(PROBLEM_JSON.as_bytes()));
-    if !(status.is_client_error() || status.is_server_error()) || is_problem {
+    if !(status.is_client_error() || status.is_server_error()) || is_problem(&res) {
         return res;
     }
     let retry = res.headers().get(header::RETRY_AFTER).cloned();

@@ -62,3 +62,30 @@ pub fn relative_l2(a: &[f64], b: &[f64]) -> f64 {
     let d: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
     (d / b.iter().map(|y| y * y).sum::<f64>()).sqrt()
 }
+
+/// Imports a model file as `wavrad import` does, reading the files it names from its folder.
+pub fn import_file(
+    path: &std::path::Path,
+) -> Result<wavrad::import::Imported, wavrad::import::ImportError> {
+    use wavrad::import::{import, Format, Model};
+    let bytes = std::fs::read(path).unwrap();
+    let folder = path.parent().unwrap().to_path_buf();
+    let files = move |name: &str| std::fs::read(folder.join(name)).ok();
+    let name = path.file_name().unwrap().to_string_lossy().to_string();
+    let model = Model {
+        file: &name,
+        format: Format::from_file_name(&name).unwrap(),
+        bytes: &bytes,
+    };
+    import(model, &files, &Limits::default())
+}
+
+/// The `name` of each surface of a document, in order.
+pub fn surface_names(doc: &Value) -> Vec<&str> {
+    doc["scene"]["surfaces"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect()
+}
