@@ -437,3 +437,77 @@ fn meshes_in_a_room_match_the_path_tracer() {
         }
     }
 }
+
+/// A room whose ceiling is a mesh of 128 triangles (an 8 × 8 grid of squares, 1 m a side), lit
+/// by a 2 × 2 m light hung 1 cm below it over four of the squares: the triangles behind the
+/// light are covered (they see only its back), and those along its edges are partly
+/// covered, down to slivers. Every surface's mean within 1 % beyond 4 standard errors of
+/// the path tracer. The covered part of a triangle patch's root element used to be measured
+/// with the tensor Gram matrices of its (s, t) square, half of which lies outside the
+/// triangle: the triangles along the light's edges held polynomials with means of 4 against
+/// the ceiling's 0.26, sent them, and every surface came out 15 % bright (energy balance
+/// 1.16).
+#[test]
+fn a_mesh_ceiling_behind_a_hung_light_sends_only_what_it_reflects() {
+    let (w, h, d) = (8.0, 5.0, 8.0);
+    let quad = |name: &str, p0: [f64; 3], p1: [f64; 3], p3: [f64; 3]| {
+        let p2 = [0, 1, 2].map(|i| p1[i] + p3[i] - p0[i]);
+        json!({"name": name, "corners": [p0, p1, p2, p3], "reflectance": 0.7})
+    };
+    let n = 8;
+    let positions: Vec<[f64; 3]> = (0..=n)
+        .flat_map(|j| (0..=n).map(move |i| [w * i as f64 / n as f64, h, d * j as f64 / n as f64]))
+        .collect();
+    let triangles: Vec<[usize; 3]> = (0..n)
+        .flat_map(|j| {
+            (0..n).flat_map(move |i| {
+                let a = j * (n + 1) + i;
+                [[a, a + 1, a + n + 2], [a, a + n + 2, a + n + 1]]
+            })
+        })
+        .collect();
+    let mut light = quad(
+        "light",
+        [3.0, h - 0.01, 3.0],
+        [5.0, h - 0.01, 3.0],
+        [3.0, h - 0.01, 5.0],
+    );
+    light["reflectance"] = json!(0.0);
+    light["emission"] = json!(10.0);
+    let surfaces = vec![
+        quad("floor", [0.0, 0.0, 0.0], [0.0, 0.0, d], [w, 0.0, 0.0]),
+        quad("back", [0.0, 0.0, d], [0.0, h, d], [w, 0.0, d]),
+        quad("front", [0.0, 0.0, 0.0], [w, 0.0, 0.0], [0.0, h, 0.0]),
+        quad("left", [0.0, 0.0, 0.0], [0.0, h, 0.0], [0.0, 0.0, d]),
+        quad("right", [w, 0.0, 0.0], [w, 0.0, d], [w, h, 0.0]),
+        json!({"name": "ceiling", "mesh": {"positions": positions, "triangles": triangles},
+            "reflectance": 0.7}),
+        light,
+    ];
+    let doc = json!({
+        "scene": {"kind": "3d", "name": "a mesh ceiling behind a light", "surfaces": surfaces},
+        "solver": {"method": "hierarchical"},
+        "output": {"image": {"width": 32, "height": 32}}
+    });
+    let reference = tracer::Tracer::new(&doc).surface_means(1 << 16, 0x11d);
+    let o = run(doc);
+    for (s, (mean, err)) in o.result.surfaces.iter().zip(&reference) {
+        let gap = (s.mean[0] - mean[0]).abs();
+        eprintln!(
+            "{:8} {:.5} against {:.5} ± {:.5} ({:+.2} %)",
+            s.name,
+            s.mean[0],
+            mean[0],
+            err[0],
+            100.0 * (s.mean[0] / mean[0] - 1.0)
+        );
+        assert!(
+            gap <= 0.01 * mean[0] + 4.0 * err[0],
+            "{}: {} against the path tracer's {} ± {}",
+            s.name,
+            s.mean[0],
+            mean[0],
+            err[0]
+        );
+    }
+}
