@@ -493,6 +493,9 @@ pub fn contacts(all: &Bvh, i: usize) -> Vec<[[f64; 2]; 2]> {
 /// sides would smear it (on the Cornell box without its blocks, the light 1 unit below the
 /// ceiling: the four cells above it 40 % bright, those around it 8 % dark).
 ///
+/// Over part of it: a corner of the lid over i, or a corner of i under the lid (a triangle of
+/// a meshed ceiling wholly under a light holds none of the light's corners).
+///
 /// `all` holds every surface ([`Bvh::new`]): a lid's corner over i is within [`LID_GAP`] of
 /// the largest surface's diameter of i's box.
 fn lidded(all: &Bvh, i: usize) -> bool {
@@ -510,11 +513,15 @@ fn lidded(all: &Bvh, i: usize) -> bool {
             && dot(q.n, o.n) > 1.0 - 1e-9
             && gap > 0.0
             && gap < reach
-            && corners.iter().any(|&c| {
-                let (s, t) = q.params(c);
-                (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t) && (!q.tri || s + t <= 1.0)
-            })
+            && (corners.iter().any(|&c| inside(q, c)) || q.outline().iter().any(|&c| inside(o, c)))
     })
+}
+
+/// Whether the projection of `c` along `q`'s normal falls inside `q` (its triangle, for a
+/// triangle patch).
+fn inside(q: &Parallelogram, c: V3) -> bool {
+    let (s, t) = q.params(c);
+    (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t) && (!q.tri || s + t <= 1.0)
 }
 
 /// The bounding box of `q`, `pad` wider on every side.

@@ -810,8 +810,9 @@ mod tests {
 
     /// The root element of a triangle patch that a solid covers in part measures its covered
     /// part with the triangle basis, as its children do: a ceiling of 32 triangles with a
-    /// light hung 1 cm below four of its squares has the probed triangles under the light
-    /// covered and those beside it open (up to the probe's strip along the light's edge).
+    /// light hung 1 cm below four of its squares has its eight triangles under the light
+    /// covered (two of them hold none of the light's corners) and the probed ones beside it
+    /// open (up to the probe's strip along the light's edge).
     /// Measured with the tensor Gram matrices of the triangle's (s, t) square, half of which
     /// lies outside it, the open ones came out half covered, with wild polynomials on them.
     #[test]
@@ -854,7 +855,8 @@ mod tests {
             .collect();
         let under = exposed.iter().filter(|&&f| f < 0.1).count();
         let open = exposed.iter().filter(|&&f| f > 0.9).count();
-        assert!(under > 0 && open > 0, "{exposed:?}");
+        assert_eq!(under, 8, "the eight triangles under the light: {exposed:?}");
+        assert!(open > 0, "{exposed:?}");
         assert_eq!(under + open, exposed.len(), "{exposed:?}");
     }
 }
