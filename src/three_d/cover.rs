@@ -328,6 +328,18 @@ impl Mask {
 }
 
 impl Mask {
+    /// The exposure of `piece` of this mask's patch, in the basis of its elements: the
+    /// triangle basis on a triangle patch (`tri`), tensor Legendre otherwise. Every element,
+    /// the root included, takes its exposure from here: a triangle's measured by the tensor
+    /// matrices of its (s, t) square, half of which lies outside it, came out half covered.
+    pub fn exposure_of(&self, piece: &Piece, tri: bool, k: usize) -> Exposure {
+        if tri {
+            self.exposure_triangle(piece, k)
+        } else {
+            self.exposure(piece.s, piece.t, k)
+        }
+    }
+
     /// The exposure of a triangle piece of a triangle patch ([`Piece`]: half of a square
     /// aligned to the grid) for the orthonormal polynomials of order `k − 1` on it
     /// ([`TriangleBasis`]), in `k² × k²` matrices whose first (m+1)(m+2)/2 rows and columns

@@ -147,13 +147,8 @@ impl<'g> Hierarchy<'g> {
                     e,
                     h: vec![[0.0; 3]; k * k],
                     detail: 0.0,
-                    // a triangle patch by the triangle basis' Gram matrices, as its elements
                     exposure: masks[i].as_ref().map_or(Exposure::Open, |m| {
-                        if geo.quads[i].tri {
-                            m.exposure_triangle(&piece, k)
-                        } else {
-                            m.exposure(piece.s, piece.t, k)
-                        }
+                        m.exposure_of(&piece, geo.quads[i].tri, k)
                     }),
                 }
             })

@@ -231,7 +231,7 @@ impl Hierarchy<'_> {
                 );
                 let peak = peak_emission(quad, piece);
                 let exposure = match (&parent.exposure, &self.masks[p.surface]) {
-                    (Exposure::Partial(_), Some(m)) => m.exposure(piece.s, piece.t, self.k),
+                    (Exposure::Partial(_), Some(m)) => m.exposure_of(&piece, false, self.k),
                     (e, _) => e.clone(),
                 };
                 self.elements.push(Element {
@@ -278,7 +278,7 @@ impl Hierarchy<'_> {
             );
             let at = |x: f64| (x * f64::from(1u32 << (parent.level + 1))).round() as u32;
             let exposure = match (&parent.exposure, &self.masks[piece.surface]) {
-                (Exposure::Partial(_), Some(m)) => m.exposure_triangle(&piece, self.k),
+                (Exposure::Partial(_), Some(m)) => m.exposure_of(&piece, true, self.k),
                 (e, _) => e.clone(),
             };
             self.elements.push(Element {
