@@ -458,47 +458,75 @@ fn within_the_path_tracer(
 /// 1.16).
 #[test]
 fn a_mesh_ceiling_behind_a_hung_light_sends_only_what_it_reflects() {
+    let doc = hung_light_room(&["ceiling"]);
+    let reference = tracer::Tracer::new(&doc).surface_means(1 << 16, 0x11d);
+    // grey: one channel says it all
+    within_the_path_tracer(&run(doc), &reference, 0..1);
+}
+
+/// The same room with all six walls as meshes of 128 triangles: the walls' triangles are
+/// clustered and most of the light between walls goes through cluster links. Every
+/// surface's mean within 1 % beyond 4 standard errors of the path tracer, and the energy
+/// balance of the closed room within 1 % of 1. Cluster links took each source's members as
+/// points at the weights' centroid, which overestimates (second order, one-signed): the
+/// errors added up to a balance of 1.013 and the ceiling 2.7 % bright, before the
+/// transfer carried the source's second moment.
+#[test]
+fn a_room_of_meshes_keeps_its_energy() {
+    let doc = hung_light_room(&["floor", "ceiling", "back", "front", "left", "right"]);
+    let reference = tracer::Tracer::new(&doc).surface_means(1 << 17, 0xba1);
+    let o = run(doc);
+    let balance = o.result.metrics.energy.balance[0];
+    assert!((balance - 1.0).abs() < 0.01, "energy balance {balance}");
+    within_the_path_tracer(&o, &reference, 0..1);
+}
+
+/// An 8 × 5 × 8 room of grey walls (ρ 0.7) lit by a 2 × 2 light (E 10) hung 1 cm under the
+/// ceiling; the walls named in `meshed` are meshes of 8 × 8 squares, each split along its
+/// diagonal, the others parallelograms.
+fn hung_light_room(meshed: &[&str]) -> Value {
     let (w, h, d) = (8.0, 5.0, 8.0);
     let quad = |name: &str, p0: [f64; 3], p1: [f64; 3], p3: [f64; 3]| {
         let p2 = [0, 1, 2].map(|i| p1[i] + p3[i] - p0[i]);
-        json!({"name": name, "corners": [p0, p1, p2, p3], "reflectance": 0.7})
-    };
-    let n = 8;
-    let positions: Vec<[f64; 3]> = (0..=n)
-        .flat_map(|j| (0..=n).map(move |i| [w * i as f64 / n as f64, h, d * j as f64 / n as f64]))
-        .collect();
-    let triangles: Vec<[usize; 3]> = (0..n)
-        .flat_map(|j| {
-            (0..n).flat_map(move |i| {
-                let a = j * (n + 1) + i;
-                [[a, a + 1, a + n + 2], [a, a + n + 2, a + n + 1]]
+        if !meshed.contains(&name) {
+            return json!({"name": name, "corners": [p0, p1, p2, p3], "reflectance": 0.7});
+        }
+        let n = 8;
+        let at = |i: usize, j: usize| {
+            let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+            [0, 1, 2].map(|k| p0[k] + u * (p1[k] - p0[k]) + v * (p3[k] - p0[k]))
+        };
+        let positions: Vec<[f64; 3]> = (0..=n)
+            .flat_map(|j| (0..=n).map(move |i| (i, j)))
+            .map(|(i, j)| at(i, j))
+            .collect();
+        // the parallelogram's orientation: p0 → p1 → p2
+        let triangles: Vec<[usize; 3]> = (0..n)
+            .flat_map(|j| {
+                (0..n).flat_map(move |i| {
+                    let a = j * (n + 1) + i;
+                    [[a, a + 1, a + n + 2], [a, a + n + 2, a + n + 1]]
+                })
             })
-        })
-        .collect();
-    let mut light = quad(
-        "light",
-        [3.0, h - 0.01, 3.0],
-        [5.0, h - 0.01, 3.0],
-        [3.0, h - 0.01, 5.0],
-    );
-    light["reflectance"] = json!(0.0);
-    light["emission"] = json!(10.0);
+            .collect();
+        json!({"name": name, "mesh": {"positions": positions, "triangles": triangles},
+            "reflectance": 0.7})
+    };
+    let light = json!({"name": "light", "reflectance": 0.0, "emission": 10.0,
+        "corners": [[3.0, h - 0.01, 3.0], [5.0, h - 0.01, 3.0], [5.0, h - 0.01, 5.0],
+                    [3.0, h - 0.01, 5.0]]});
     let surfaces = vec![
         quad("floor", [0.0, 0.0, 0.0], [0.0, 0.0, d], [w, 0.0, 0.0]),
         quad("back", [0.0, 0.0, d], [0.0, h, d], [w, 0.0, d]),
         quad("front", [0.0, 0.0, 0.0], [w, 0.0, 0.0], [0.0, h, 0.0]),
         quad("left", [0.0, 0.0, 0.0], [0.0, h, 0.0], [0.0, 0.0, d]),
         quad("right", [w, 0.0, 0.0], [w, 0.0, d], [w, h, 0.0]),
-        json!({"name": "ceiling", "mesh": {"positions": positions, "triangles": triangles},
-            "reflectance": 0.7}),
+        quad("ceiling", [0.0, h, 0.0], [w, h, 0.0], [0.0, h, d]),
         light,
     ];
-    let doc = json!({
-        "scene": {"kind": "3d", "name": "a mesh ceiling behind a light", "surfaces": surfaces},
+    json!({
+        "scene": {"kind": "3d", "name": "a room lit by a hung light", "surfaces": surfaces},
         "solver": {"method": "hierarchical"},
         "output": {"image": {"width": 32, "height": 32}}
-    });
-    let reference = tracer::Tracer::new(&doc).surface_means(1 << 16, 0x11d);
-    // grey: one channel says it all
-    within_the_path_tracer(&run(doc), &reference, 0..1);
+    })
 }
