@@ -8,7 +8,7 @@
 //! ```text
 //! err = ρ_R · (Ê_S + w_R · R̂_S) · σ
 //! Ê_S = min(Σ_j A_j E_j / (π dist²), max_j E_j)     (emitted light; R̂_S likewise for B − E)
-//! σ   = (d_S / (d_S + dist))² + d_m / (d_m + dist)   (a source facing all of R: [`Emitter`])
+//! σ   = (d_S / (d_S + dist))³ + d_m / (d_m + dist)   (a source facing all of R: [`Emitter`])
 //! σ   = d / (d + dist)                               (otherwise)
 //! ```
 //!
@@ -466,11 +466,11 @@ impl Hierarchy<'_> {
             }
         };
         // taking the ends as points: with an affine source ([`Emitter`]) what is left is
-        // second order in the source's size over the distance, and first order in a
+        // third order in the source's size over the distance, and first order in a
         // receiving member's (it receives a constant); otherwise first order in the larger
         let affine = es.bound.before(&er.bound);
         let smooth = if affine {
-            ((ds / (ds + dist)).powi(2) + er.member / (er.member + dist)).min(1.0)
+            ((ds / (ds + dist)).powi(3) + er.member / (er.member + dist)).min(1.0)
         } else {
             size / (size + dist)
         };
