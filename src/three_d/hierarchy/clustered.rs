@@ -203,19 +203,20 @@ impl Emitter {
             if r2 <= 0.0 || f <= 0.0 {
                 return 0.0;
             }
-            // S = Σ_k x_k P_k − P₀ − W c cᵀ
+            // S d and tr S, with S = P(x) − W c cᵀ, P(x) = Σ_k x_k P_k − P₀ and W c the moment
             let p = &self.second[ch];
-            let mut s = sym_axpy(-1.0, &self.second_offset[ch], &[0.0; 6]);
-            for k in 0..3 {
-                s = sym_axpy(x[k], &p[k], &s);
-            }
-            s = sym_axpy(-weight, &sym(c, c), &s);
-            let sd = sym_mul(&s, d);
-            let trace = s[0] + s[1] + s[2];
-            let r6 = r2 * r2 * r2;
+            let o = &self.second_offset[ch];
+            let px: Sym =
+                [0, 1, 2, 3, 4, 5].map(|e| x[0] * p[0][e] + x[1] * p[1][e] + x[2] * p[2][e] - o[e]);
+            let cd = dot(c, d);
+            let pd = sym_mul(&px, d);
+            let sd = [0, 1, 2].map(|i| pd[i] - cd * moment[i]);
+            let trace = px[0] + px[1] + px[2] - dot(c, moment);
+            let inv = 1.0 / r2;
+            let inv4 = inv * inv;
             let hessian =
-                -8.0 * dot(n, sd) / r6 - 4.0 * f * trace / r6 + 24.0 * f * dot(d, sd) / (r6 * r2);
-            ((weight * f / (r2 * r2) + 0.5 * hessian) / PI).max(0.0)
+                inv4 * inv * (-8.0 * dot(n, sd) - 4.0 * f * trace + 24.0 * f * dot(d, sd) * inv);
+            ((weight * f * inv4 + 0.5 * hessian) / PI).max(0.0)
         })
     }
 }
