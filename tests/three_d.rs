@@ -27,6 +27,11 @@ fn furnace_cube_for_every_method_and_order() {
             json!({ "method": "hierarchical", "order": order, "resolution": 4, "tolerance": 1e-9 }),
         );
     }
+    // the hierarchical method's Gauss–Seidel sweeps (a patch at a time)
+    cases.push(
+        json!({ "method": "hierarchical", "resolution": 4, "tolerance": 1e-9,
+        "iteration": "gauss-seidel" }),
+    );
     for solver in cases {
         let mut doc = furnace(e, rho);
         doc["solver"] = solver.clone();

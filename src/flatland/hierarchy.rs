@@ -13,7 +13,9 @@
 //!    Hᵀ h), B = E + ρ H at the leaves, and B is pulled back up (parent coefficients H b, the
 //!    projection onto the coarser level; the wavelet details stay in the children);
 //!
-//! a Jacobi sweep of B = E + ρKB in the non-standard multiwavelet form. The refinement oracle
+//! a Jacobi sweep of B = E + ρKB in the non-standard multiwavelet form (with the document's
+//! `"gauss-seidel"`, both steps segment by segment, each segment's gather reading the B that
+//! the segments before it got in the same sweep). The refinement oracle
 //! estimates what a link gets wrong: the part of K on r × s outside the tensor polynomials of
 //! order m (sampled on a Gauss grid, visibility included), times ‖B_s‖, times ρ_r: a bound of
 //! the L² norm of the error of B on r, the measure of eq. (6). A link whose estimate is above
@@ -32,6 +34,7 @@ use crate::methods::solution::{JobError, Solution};
 use crate::methods::solve::{Settings, SolveError, Solved};
 use crate::progress::{Cancelled, Phase, Progress};
 use crate::result::HierarchyStats;
+use crate::scene::Iteration;
 use crate::scene::{Rgb, Segment};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -530,6 +533,41 @@ impl<'a> Hierarchy<'a> {
         (change, norm)
     }
 
+    /// One Gauss–Seidel sweep, a segment at a time in their order: the links into the
+    /// segment's tree gather from the sources' B as it is now (the segments before it
+    /// already swept), then the tree is pushed and pulled. Returns what [`Self::sweep`] does.
+    fn sweep_gauss_seidel(&mut self) -> (f64, f64) {
+        let k = self.k;
+        for e in &mut self.elements {
+            e.h.iter_mut().for_each(|v| *v = [0.0; 3]);
+        }
+        let mut into = vec![Vec::new(); self.segments.len()];
+        for (i, l) in self.links.iter().enumerate() {
+            into[self.elements[l.r].surface].push(i);
+        }
+        let (mut change, mut norm) = (0.0, 0.0);
+        for (root, links) in into.iter().enumerate() {
+            for &i in links {
+                let l = &self.links[i];
+                let mut out = vec![[0.0; 3]; k];
+                let bs = &self.elements[l.s].b;
+                for (p, o) in out.iter_mut().enumerate() {
+                    for (q, b) in bs.iter().enumerate() {
+                        let t = l.t[p * k + q];
+                        (0..3).for_each(|c| o[c] += t * b[c]);
+                    }
+                }
+                let h = &mut self.elements[l.r].h;
+                for (hp, o) in h.iter_mut().zip(&out) {
+                    (0..3).for_each(|c| hp[c] += o[c]);
+                }
+            }
+            let zero = vec![[0.0; 3]; k];
+            self.push_pull(root, &zero, &mut change, &mut norm);
+        }
+        (change, norm)
+    }
+
     fn push_pull(&mut self, e: usize, above: &[Rgb], change: &mut f64, norm: &mut f64) {
         let k = self.k;
         let total: Vec<Rgb> = (0..k)
@@ -567,7 +605,10 @@ impl<'a> Hierarchy<'a> {
     ) -> Result<bool, JobError> {
         for _ in 0..settings.max_iterations {
             progress.check()?;
-            let (change, norm) = self.sweep();
+            let (change, norm) = match settings.iteration {
+                Iteration::Jacobi => self.sweep(),
+                Iteration::GaussSeidel => self.sweep_gauss_seidel(),
+            };
             let rel = if norm > 0.0 {
                 (change / norm).sqrt()
             } else {
