@@ -331,14 +331,23 @@ impl Tracer {
             .collect()
     }
 
-    /// Cell means of B on every surface (`grid × grid`, rows by t then s) from
-    /// `per_side²` stratified samples per cell, with their standard errors.
+    /// Cell means of B on every document surface, as a result lists them: a parallelogram's
+    /// `grid × grid` (rows by t then s), a triangle's or a mesh's one per triangle; each from
+    /// `per_side²` stratified samples, with its standard error.
     pub fn cells(&self, grid: usize, per_side: usize, seed: u64) -> Vec<Vec<(V3, V3)>> {
-        (0..self.quads.len())
-            .map(|on| {
-                (0..grid * grid)
+        self.surfaces()
+            .into_iter()
+            .map(|patches| {
+                let tri = self.quads[patches[0]].tri;
+                let cells: Vec<(usize, usize)> = if tri {
+                    patches.iter().map(|&on| (on, 0)).collect()
+                } else {
+                    (0..grid * grid).map(|cell| (patches[0], cell)).collect()
+                };
+                let grid = if tri { 1 } else { grid };
+                cells
                     .into_par_iter()
-                    .map(|cell| {
+                    .map(|(on, cell)| {
                         let (ci, cj) = (cell % grid, cell / grid);
                         let mut rng = SmallRng::seed_from_u64(
                             seed ^ ((on as u64) << 40) ^ ((cell as u64) << 8),
@@ -346,12 +355,16 @@ impl Tracer {
                         let q = &self.quads[on];
                         let (mut sum, mut sq) = ([0.0; 3], [0.0; 3]);
                         for k in 0..per_side * per_side {
-                            let s = (ci as f64
+                            let mut s = (ci as f64
                                 + ((k % per_side) as f64 + rng.random::<f64>()) / per_side as f64)
                                 / grid as f64;
-                            let t = (cj as f64
+                            let mut t = (cj as f64
                                 + ((k / per_side) as f64 + rng.random::<f64>()) / per_side as f64)
                                 / grid as f64;
+                            // a triangle's points: the square's, folded onto s + t ≤ 1
+                            if q.tri && s + t > 1.0 {
+                                (s, t) = (1.0 - s, 1.0 - t);
+                            }
                             let x = q.at(s, t);
                             let e = if q.emits(s, t) { q.emission } else { [0.0; 3] };
                             let b = add(e, mul(q.rho, self.gathered(x, on, &mut rng)));
@@ -368,6 +381,52 @@ impl Tracer {
             })
             .collect()
     }
+
+    /// The patches of each document surface, in the document's order.
+    pub fn surfaces(&self) -> Vec<Vec<usize>> {
+        let count = self.quads.iter().map(|q| q.owner + 1).max().unwrap_or(0);
+        let mut out = vec![Vec::new(); count];
+        for (i, q) in self.quads.iter().enumerate() {
+            out[q.owner].push(i);
+        }
+        out
+    }
+
+    /// Per document surface: whether it emits, and the weights of its [`Tracer::cells`] in
+    /// its mean (equal on a parallelogram's grid, the triangles' areas on a mesh).
+    fn cell_weights(&self, reference: &[Vec<(V3, V3)>]) -> Vec<(bool, Vec<f64>)> {
+        self.surfaces()
+            .into_iter()
+            .zip(reference)
+            .map(|(patches, cells)| {
+                let emits = patches
+                    .iter()
+                    .any(|&i| self.quads[i].emission.iter().any(|&e| e > 0.0));
+                let q = &self.quads[patches[0]];
+                let weights = if q.tri {
+                    let total: f64 = patches.iter().map(|&i| self.quads[i].area).sum();
+                    patches
+                        .iter()
+                        .map(|&i| self.quads[i].area / total)
+                        .collect()
+                } else {
+                    vec![1.0 / cells.len() as f64; cells.len()]
+                };
+                (emits, weights)
+            })
+            .collect()
+    }
+}
+
+/// The mean of cells with `weights`, and its standard error, in channel `c`.
+fn weighted(cells: &[(V3, V3)], weights: &[f64], c: usize) -> (f64, f64) {
+    let mean = cells.iter().zip(weights).map(|((v, _), w)| w * v[c]).sum();
+    let var: f64 = cells
+        .iter()
+        .zip(weights)
+        .map(|((_, e), w)| (w * e[c]).powi(2))
+        .sum();
+    (mean, var.sqrt())
 }
 
 /// A solution against the reference.
@@ -397,14 +456,13 @@ impl Tracer {
                 *slot = (gap, name.to_string());
             }
         };
-        for ((s, cells), q) in surfaces.iter().zip(reference).zip(&self.quads) {
-            if q.emission.iter().any(|&e| e > 0.0) {
+        let weights = self.cell_weights(reference);
+        for ((s, cells), (emits, w)) in surfaces.iter().zip(reference).zip(&weights) {
+            if *emits {
                 continue;
             }
-            let m = cells.len() as f64;
             for c in 0..3 {
-                let mean: f64 = cells.iter().map(|(v, _)| v[c]).sum::<f64>() / m;
-                let err: f64 = cells.iter().map(|(_, e)| e[c] * e[c]).sum::<f64>().sqrt() / m;
+                let (mean, err) = weighted(cells, w, c);
                 let beyond = ((s.mean[c] - mean).abs() - z * err).max(0.0) / mean;
                 if c == 0 {
                     eprintln!(
@@ -457,16 +515,15 @@ pub fn compare(doc: &Value, reference: &[Vec<(V3, V3)>], label: &str) -> Compari
     let mut surfaces = Vec::new();
     let (mut gap2, mut noise2, mut norm2) = (0.0, 0.0, 0.0);
     eprintln!("{label}: surface means, solver / path traced − 1 (± 1 standard error)");
-    for ((s, cells), q) in out.result.surfaces.iter().zip(reference).zip(&tracer.quads) {
-        if q.emission.iter().any(|&e| e > 0.0) {
+    let weights = tracer.cell_weights(reference);
+    for ((s, cells), (emits, w)) in out.result.surfaces.iter().zip(reference).zip(&weights) {
+        if *emits {
             continue;
         }
-        let m = cells.len() as f64;
         let mut line = format!("  {:12}", s.name);
         let (mut worst, mut noise) = (0.0_f64, 0.0);
         for c in 0..3 {
-            let mean: f64 = cells.iter().map(|(v, _)| v[c]).sum::<f64>() / m;
-            let err: f64 = cells.iter().map(|(_, e)| e[c] * e[c]).sum::<f64>().sqrt() / m;
+            let (mean, err) = weighted(cells, w, c);
             let rel = s.mean[c] / mean - 1.0;
             line += &format!(" {:+7.2}% ±{:.2}%", 100.0 * rel, 100.0 * err / mean);
             if rel.abs() > worst {
