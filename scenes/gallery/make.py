@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Writes the gallery of 3D test scenes (rooms with boxes, rotated boxes, a small object, a box
-against a wall, a light in a corner) as job documents at the solver's defaults
+against a wall, a light in a corner, spheres and boxes as meshes) as job documents at the solver's defaults
 (hierarchical, order 1, the default epsilon and element size). The tests in
 tests/gallery.rs solve each and compare it with a path-traced reference.
 
@@ -64,6 +64,46 @@ def box(name, cx, cz, sx, sy, sz, angle_deg=0.0, rho=WHITE, y0=0.0):
     ]
 
 
+def box_mesh(name, cx, cz, sx, sy, sz, angle_deg=0.0, rho=WHITE):
+    """The box of box() as one mesh surface: its top and four sides, two triangles each."""
+    positions, triangles = [], []
+    for q in box(name, cx, cz, sx, sy, sz, angle_deg, rho):
+        base = len(positions)
+        positions += q["corners"]
+        triangles += [[base, base + 1, base + 2], [base, base + 2, base + 3]]
+    return {"name": name, "mesh": {"positions": positions, "triangles": triangles},
+            "reflectance": rho}
+
+
+def icosphere(name, centre, radius, level, rho=WHITE):
+    """A sphere as a mesh facing out: the icosahedron split `level` times into four,
+    20 * 4^level triangles."""
+    t = (1 + 5 ** 0.5) / 2
+    v = [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
+         [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]]
+    v = [[x / math.sqrt(sum(c * c for c in p)) for x in p] for p in v]
+    f = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
+         [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
+         [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]]
+    for _ in range(level):
+        mid = {}
+
+        def m(a, b):
+            key = (min(a, b), max(a, b))
+            if key not in mid:
+                p = [(v[a][i] + v[b][i]) / 2 for i in range(3)]
+                n = math.sqrt(sum(c * c for c in p))
+                v.append([c / n for c in p])
+                mid[key] = len(v) - 1
+            return mid[key]
+
+        f = [g for a, b, c in f
+             for g in ([a, m(a, b), m(c, a)], [b, m(b, c), m(a, b)], [c, m(c, a), m(b, c)],
+                       [m(a, b), m(b, c), m(c, a)])]
+    positions = [r([centre[i] + radius * p[i] for i in range(3)]) for p in v]
+    return {"name": name, "mesh": {"positions": positions, "triangles": f}, "reflectance": rho}
+
+
 def doc(name, surfaces, eye, look, grid=4):
     return {
         "scene": {"kind": "3d", "name": name, "surfaces": surfaces},
@@ -120,6 +160,17 @@ def corner_light():
     return doc("A light in a corner", surfaces, [4, 2.5, -5], [4, 1, 3])
 
 
+def meshes_on_a_floor():
+    """Two icospheres and two turned boxes, each one mesh, in a room of parallelograms."""
+    surfaces = room(10, 6, 10, left=RED, right=GREEN)
+    surfaces.append(ceiling_light(4, 4, 6, 6, 5.99, 12.0))
+    surfaces.append(icosphere("ball", [3, 1.2, 4], 1.2, 2, [0.8, 0.6, 0.3]))
+    surfaces.append(icosphere("small-ball", [6.5, 0.5, 3], 0.5, 1))
+    surfaces.append(box_mesh("block", 6.5, 6.5, 2, 2.5, 1.5, 30, [0.3, 0.5, 0.7]))
+    surfaces.append(box_mesh("slab", 3, 7.5, 2.5, 0.6, 1.5, -15))
+    return doc("Meshes on a floor", surfaces, [5, 4, -6], [5, 1.5, 5])
+
+
 def main():
     scenes = {
         "room-3x3": grid_room(3),
@@ -128,6 +179,7 @@ def main():
         "small-object": small_object(),
         "box-against-wall": box_against_wall(),
         "corner-light": corner_light(),
+        "meshes-on-a-floor": meshes_on_a_floor(),
     }
     for name, d in scenes.items():
         with open(os.path.join(HERE, f"{name}.json"), "w") as f:
