@@ -67,6 +67,21 @@ pub struct Link {
     pub t: Vec<f64>,
 }
 
+impl Link {
+    /// What the link delivers to its receiver: T b, for the source's coefficients b.
+    fn transfer(&self, b: &[Rgb]) -> Vec<Rgb> {
+        self.t
+            .chunks_exact(b.len())
+            .map(|row| {
+                row.iter().zip(b).fold([0.0; 3], |mut o, (t, bq)| {
+                    (0..3).for_each(|c| o[c] += t * bq[c]);
+                    o
+                })
+            })
+            .collect()
+    }
+}
+
 pub struct Hierarchy<'a> {
     geo: Geometry,
     segments: &'a [Segment],
@@ -504,19 +519,7 @@ impl<'a> Hierarchy<'a> {
         let gathered: Vec<(usize, Vec<Rgb>)> = self
             .links
             .par_iter()
-            .map(|l| {
-                let bs = &self.elements[l.s].b;
-                let mut out = vec![[0.0; 3]; k];
-                for p in 0..k {
-                    for q in 0..k {
-                        let t = l.t[p * k + q];
-                        for c in 0..3 {
-                            out[p][c] += t * bs[q][c];
-                        }
-                    }
-                }
-                (l.r, out)
-            })
+            .map(|l| (l.r, l.transfer(&self.elements[l.s].b)))
             .collect();
         for (r, h) in gathered {
             for p in 0..k {
@@ -549,14 +552,7 @@ impl<'a> Hierarchy<'a> {
         for (root, links) in into.iter().enumerate() {
             for &i in links {
                 let l = &self.links[i];
-                let mut out = vec![[0.0; 3]; k];
-                let bs = &self.elements[l.s].b;
-                for (p, o) in out.iter_mut().enumerate() {
-                    for (q, b) in bs.iter().enumerate() {
-                        let t = l.t[p * k + q];
-                        (0..3).for_each(|c| o[c] += t * b[c]);
-                    }
-                }
+                let out = l.transfer(&self.elements[l.s].b);
                 let h = &mut self.elements[l.r].h;
                 for (hp, o) in h.iter_mut().zip(&out) {
                     (0..3).for_each(|c| hp[c] += o[c]);

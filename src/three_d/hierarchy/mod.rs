@@ -367,35 +367,22 @@ impl<'g> Hierarchy<'g> {
         }
         let kk = self.k * self.k;
         // gather, receivers in parallel, each receiver's links in a fixed order
-        let mut starts = Vec::new();
-        for (i, l) in self.links.iter().enumerate() {
-            if i == 0 || self.links[i - 1].recv != l.recv {
-                starts.push(i);
-            }
-        }
-        starts.push(self.links.len());
         // every element's B side by side: the gather reads them in no particular order
         let all_b: Vec<Rgb> = self
             .elements
             .iter()
             .flat_map(|e| e.b.iter().copied())
             .collect();
-        let gathered: Vec<(u32, Vec<Rgb>)> = starts
-            .par_windows(2)
-            .map(|w| {
-                let links = &self.links[w[0]..w[1]];
+        let gathered: Vec<(u32, Vec<Rgb>)> = self
+            .receiver_runs()
+            .into_par_iter()
+            .map(|(r, run)| {
                 let mut h = vec![[0.0; 3]; kk];
-                for l in links {
+                for l in &self.links[run] {
                     let b = &all_b[l.src as usize * kk..(l.src as usize + 1) * kk];
-                    for (hr, row) in h.iter_mut().zip(l.block.chunks_exact(kk)) {
-                        for (v, bc) in row.iter().zip(b) {
-                            for ch in 0..3 {
-                                hr[ch] += v * bc[ch];
-                            }
-                        }
-                    }
+                    gather(&mut h, &l.block, b);
                 }
-                (links[0].recv, h)
+                (r, h)
             })
             .collect();
         for e in &mut self.elements {
@@ -418,6 +405,19 @@ impl<'g> Hierarchy<'g> {
         }
     }
 
+    /// Each receiver with its run of links (the links are sorted by receiver).
+    fn receiver_runs(&self) -> Vec<(u32, std::ops::Range<usize>)> {
+        let mut runs = Vec::new();
+        let mut start = 0;
+        for i in 1..=self.links.len() {
+            if i == self.links.len() || self.links[i].recv != self.links[start].recv {
+                runs.push((self.links[start].recv, start..i));
+                start = i;
+            }
+        }
+        runs
+    }
+
     /// One block Gauss–Seidel sweep, a patch at a time in their order: each element of the
     /// patch gathers over its links from the sources' B as it is now (the patches before it
     /// already swept), then the patch is pushed and pulled. The links with a cluster at an end
@@ -429,16 +429,10 @@ impl<'g> Hierarchy<'g> {
             e.h.iter_mut().for_each(|v| *v = [0.0; 3]);
         }
         self.gather_clusters();
-        // each receiver's run of links (the links are grouped by receiver)
-        let mut runs = vec![(0u32, 0u32); self.elements.len()];
-        let mut i = 0;
-        while i < self.links.len() {
-            let r = self.links[i].recv;
-            let start = i;
-            while i < self.links.len() && self.links[i].recv == r {
-                i += 1;
-            }
-            runs[r as usize] = (start as u32, i as u32);
+        // each element's run of links
+        let mut runs = vec![0..0; self.elements.len()];
+        for (r, run) in self.receiver_runs() {
+            runs[r as usize] = run;
         }
         let (mut change, mut norm) = (0.0, 0.0);
         let mut tree = Vec::new();
@@ -446,8 +440,7 @@ impl<'g> Hierarchy<'g> {
             tree.clear();
             let mut open = vec![root];
             while let Some(e) = open.pop() {
-                let (a, b) = runs[e as usize];
-                if b > a {
+                if !runs[e as usize].is_empty() {
                     tree.push(e);
                 }
                 let first = self.elements[e as usize].children;
@@ -460,17 +453,9 @@ impl<'g> Hierarchy<'g> {
                 .par_iter()
                 .with_min_len(16)
                 .map(|&r| {
-                    let (a, b) = runs[r as usize];
                     let mut h = this.elements[r as usize].h.clone();
-                    for l in &this.links[a as usize..b as usize] {
-                        let src = &this.elements[l.src as usize].b;
-                        for (hr, row) in h.iter_mut().zip(l.block.chunks_exact(kk)) {
-                            for (v, bc) in row.iter().zip(src) {
-                                for ch in 0..3 {
-                                    hr[ch] += v * bc[ch];
-                                }
-                            }
-                        }
+                    for l in &this.links[runs[r as usize].clone()] {
+                        gather(&mut h, &l.block, &this.elements[l.src as usize].b);
                     }
                     h
                 })
@@ -641,6 +626,18 @@ impl<'g> Hierarchy<'g> {
             refinements: self.refinements,
             rays: self.rays,
             min_element_size: Some(self.sizing.min_element_size),
+        }
+    }
+}
+
+/// Adds a link's transfer to the receiver's H: h += T b, T the link's k² × k² block (rows by
+/// receiver coefficient) and b the source's coefficients.
+fn gather(h: &mut [Rgb], block: &[f64], b: &[Rgb]) {
+    for (hr, row) in h.iter_mut().zip(block.chunks_exact(b.len())) {
+        for (v, bc) in row.iter().zip(b) {
+            for ch in 0..3 {
+                hr[ch] += v * bc[ch];
+            }
         }
     }
 }
@@ -883,15 +880,9 @@ fn morton(s: usize, t: usize) -> usize {
 mod tests {
     use super::*;
 
-    /// The root element of a triangle patch that a solid covers in part measures its covered
-    /// part with the triangle basis, as its children do: a ceiling of 32 triangles with a
-    /// light hung 1 cm below four of its squares has its eight triangles under the light
-    /// covered (two of them hold none of the light's corners) and the probed ones beside it
-    /// open (up to the probe's strip along the light's edge).
-    /// Measured with the tensor Gram matrices of the triangle's (s, t) square, half of which
-    /// lies outside it, the open ones came out half covered, with wild polynomials on them.
-    #[test]
-    fn a_triangle_roots_covered_part_is_measured_on_the_triangle() {
+    /// A 4 × 4 m ceiling at height 2 facing down: a mesh of 4 × 4 squares, each split along
+    /// its diagonal.
+    fn ceiling() -> serde_json::Value {
         let n = 4;
         let positions: Vec<[f64; 3]> = (0..=n)
             .flat_map(|j| (0..=n).map(move |i| [i as f64, 2.0, j as f64]))
@@ -904,17 +895,33 @@ mod tests {
                 })
             })
             .collect();
+        serde_json::json!({"positions": positions, "triangles": triangles})
+    }
+
+    /// The patches of a 3D job document.
+    fn patches(doc: &serde_json::Value) -> Vec<Quad> {
+        let job = crate::scene::parse_value(doc, &crate::scene::Limits::default()).unwrap();
+        match job.scene.kind {
+            SceneKind::ThreeD(scene) => scene.patches,
+            _ => unreachable!(),
+        }
+    }
+
+    /// The root element of a triangle patch that a solid covers in part measures its covered
+    /// part with the triangle basis, as its children do: a ceiling of 32 triangles with a
+    /// light hung 1 cm below four of its squares has its eight triangles under the light
+    /// covered (two of them hold none of the light's corners) and the probed ones beside it
+    /// open (up to the probe's strip along the light's edge).
+    /// Measured with the tensor Gram matrices of the triangle's (s, t) square, half of which
+    /// lies outside it, the open ones came out half covered, with wild polynomials on them.
+    #[test]
+    fn a_triangle_roots_covered_part_is_measured_on_the_triangle() {
         let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
-            {"name": "ceiling", "mesh": {"positions": positions, "triangles": triangles},
-             "reflectance": 0.5},
+            {"name": "ceiling", "mesh": ceiling(), "reflectance": 0.5},
             {"name": "light", "corners": [[1, 1.99, 1], [3, 1.99, 1], [3, 1.99, 3], [1, 1.99, 3]],
              "reflectance": 0.0, "emission": 1.0}]},
             "solver": {"method": "hierarchical"}});
-        let job = crate::scene::parse_value(&doc, &crate::scene::Limits::default()).unwrap();
-        let SceneKind::ThreeD(scene) = &job.scene.kind else {
-            unreachable!()
-        };
-        let quads = &scene.patches;
+        let quads = &patches(&doc);
         let geo = Geometry::new(quads);
         let sizing = Sizing::new(&geo.quads, Some(0.25), None);
         let h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
@@ -941,21 +948,8 @@ mod tests {
     /// 1e-12; every element's B agrees to 1e-9 of the largest.
     #[test]
     fn gauss_seidel_reaches_the_jacobi_fixed_point_in_fewer_sweeps() {
-        let n = 4;
-        let positions: Vec<[f64; 3]> = (0..=n)
-            .flat_map(|j| (0..=n).map(move |i| [i as f64, 2.0, j as f64]))
-            .collect();
-        let triangles: Vec<[usize; 3]> = (0..n)
-            .flat_map(|j| {
-                (0..n).flat_map(move |i| {
-                    let a = j * (n + 1) + i;
-                    [[a, a + 1, a + n + 2], [a, a + n + 2, a + n + 1]]
-                })
-            })
-            .collect();
         let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
-            {"name": "ceiling", "mesh": {"positions": positions, "triangles": triangles},
-             "reflectance": 0.7},
+            {"name": "ceiling", "mesh": ceiling(), "reflectance": 0.7},
             {"name": "floor", "corners": [[0, 0, 0], [0, 0, 4], [4, 0, 4], [4, 0, 0]],
              "reflectance": [0.7, 0.5, 0.3]},
             {"name": "wall", "corners": [[0, 0, 0], [0, 2, 0], [0, 2, 4], [0, 0, 4]],
@@ -963,11 +957,7 @@ mod tests {
             {"name": "light", "corners": [[1, 1.9, 1], [3, 1.9, 1], [3, 1.9, 3], [1, 1.9, 3]],
              "reflectance": 0.0, "emission": 1.0}]},
             "solver": {"method": "hierarchical"}});
-        let job = crate::scene::parse_value(&doc, &crate::scene::Limits::default()).unwrap();
-        let SceneKind::ThreeD(scene) = &job.scene.kind else {
-            unreachable!()
-        };
-        let quads = &scene.patches;
+        let quads = &patches(&doc);
         let geo = Geometry::new(quads);
         let solve = |gauss_seidel: bool| {
             let sizing = Sizing::new(&geo.quads, Some(0.25), None);
