@@ -106,9 +106,10 @@ impl Mask {
     /// `bvh` holds the occluders ([`Bvh::occluders`]), `all` every surface ([`Bvh::new`]).
     pub fn of_scene(bvh: &Bvh, all: &Bvh, res: impl Fn(usize) -> usize) -> Vec<Option<Mask>> {
         let quads = all.quads();
+        let largest = quads.iter().map(|q| q.diameter()).fold(0.0, f64::max);
         (0..quads.len())
             .map(|i| {
-                (!contacts(all, i).is_empty() || lidded(all, i))
+                (!contacts(all, i).is_empty() || lidded(all, i, largest))
                     .then(|| Mask::probe(quads, bvh, i, res(i)))
                     .filter(|m| m.cells.iter().any(|c| *c != Cell::Open))
             })
@@ -509,11 +510,10 @@ pub fn contacts(all: &Bvh, i: usize) -> Vec<[[f64; 2]; 2]> {
 /// a meshed ceiling wholly under a light holds none of the light's corners).
 ///
 /// `all` holds every surface ([`Bvh::new`]): a lid's corner over i is within [`LID_GAP`] of
-/// the largest surface's diameter of i's box.
-fn lidded(all: &Bvh, i: usize) -> bool {
+/// `largest`, the largest surface's diameter, of i's box.
+fn lidded(all: &Bvh, i: usize, largest: f64) -> bool {
     let quads = all.quads();
     let q = &quads[i];
-    let largest = quads.iter().map(|q| q.diameter()).fold(0.0, f64::max);
     let (lo, hi) = padded_box(q, LID_GAP * largest);
     all.any_in_box(lo, hi, |j| {
         let o = &quads[j];
@@ -780,6 +780,8 @@ mod tests {
                 p([[3.0, y, 3.0], [5.0, y, 3.0], [5.0, y, 5.0], [3.0, y, 5.0]]),
             ]
         };
+        // the largest diameter is the ceiling's, √128
+        let lidded = |all: &Bvh, i| lidded(all, i, 128f64.sqrt());
         let quads = ceiling(0.01);
         assert!(quads[0].n[1] < 0.0 && quads[1].n[1] < 0.0, "both face down");
         assert!(lidded(&Bvh::new(&quads), 0) && !lidded(&Bvh::new(&quads), 1));
