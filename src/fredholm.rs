@@ -8,7 +8,7 @@ use crate::progress::{Cancelled, Phase, Progress};
 use crate::scene::Fredholm;
 use rayon::prelude::*;
 
-pub fn build(
+pub(crate) fn build(
     f: &Fredholm,
     disc: Discretization,
     progress: &dyn Progress,

@@ -1,6 +1,6 @@
 //! One job from validated document to result: the pipeline of the projection method
 //! (build → transform → threshold → solve → metrics) and the assembly of the result.
-//! Kinds and methods plug in by producing a [`Solution`].
+//! Kinds and methods plug in by producing a `Solution`.
 
 use crate::flatland::projection as flatland;
 use crate::math::field::Field;
@@ -22,11 +22,11 @@ use std::time::Instant;
 #[derive(Debug, Clone)]
 pub struct Outcome {
     pub result: JobResult,
-    /// B over each surface, as the images show it ([`Solution::shown`]); the result's
+    /// B over each surface, as the images show it (`Solution::shown`); the result's
     /// numbers are its means except on elements a solid partly covers.
     pub fields: Vec<Field>,
     /// The kernel matrix magnitudes in the chosen basis (projection method).
-    pub picture: Option<MagnitudePicture>,
+    pub(crate) picture: Option<MagnitudePicture>,
 }
 
 /// Runs a job.
@@ -195,7 +195,11 @@ fn surfaces_of_patches(
 /// B at each of `positions` points of a mesh whose triangle `i` has the field `fields[i]`: the
 /// value of each triangle's polynomial at its corners ((0, 0), (1, 0), (0, 1) of its (s, t)),
 /// averaged over the triangles that meet at the position (scene.md's `vertices`).
-pub fn vertex_values(positions: usize, triangles: &[[usize; 3]], fields: &[Field]) -> Vec<Rgb> {
+pub(crate) fn vertex_values(
+    positions: usize,
+    triangles: &[[usize; 3]],
+    fields: &[Field],
+) -> Vec<Rgb> {
     let mut sum = vec![[0.0; 3]; positions];
     let mut count = vec![0usize; positions];
     for (t, f) in triangles.iter().zip(fields) {
@@ -541,7 +545,7 @@ pub fn surface_measures(job: &Job) -> Vec<f64> {
     }
 }
 
-pub fn reflectances(job: &Job) -> Vec<Rgb> {
+fn reflectances(job: &Job) -> Vec<Rgb> {
     match &job.scene.kind {
         SceneKind::Flatland(s) => s.iter().map(|s| s.material.reflectance).collect(),
         SceneKind::ThreeD(q) => q.iter().map(|q| q.material.reflectance).collect(),

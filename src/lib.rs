@@ -21,9 +21,11 @@
 
 // Numerical loops index several arrays by the same subscript, as the papers' formulas do.
 #![allow(clippy::needless_range_loop)]
+// A `pub` item is one reachable from outside the crate; the rest is `pub(crate)` or narrower.
+#![warn(unreachable_pub)]
 
 pub mod flatland;
-pub mod fredholm;
+mod fredholm;
 pub mod import;
 pub mod job;
 pub mod math;

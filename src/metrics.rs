@@ -9,27 +9,11 @@
 
 use crate::math::field::Field;
 use crate::math::quadrature::Rule;
-use crate::methods::compress::Csr;
 use crate::result::EnergyBalance;
 use crate::scene::Rgb;
 
-/// Σ K_ij² over the kept entries whose row and column surfaces satisfy `include`.
-pub fn kept_squares(csr: &Csr, per_surface: usize, include: impl Fn(usize, usize) -> bool) -> f64 {
-    let mut sum = 0.0;
-    for i in 0..csr.n {
-        let si = i / per_surface;
-        let (cols, vals) = csr.row(i);
-        for (&j, &v) in cols.iter().zip(vals) {
-            if include(si, j as usize / per_surface) {
-                sum += v * v;
-            }
-        }
-    }
-    sum
-}
-
 /// Eq. (5) from ∫∫K² and Σ_kept K_ij² (clamped at 0 against rounding).
-pub fn kernel_relative_error(integral_k2: f64, kept_k2: f64) -> Option<f64> {
+pub(crate) fn kernel_relative_error(integral_k2: f64, kept_k2: f64) -> Option<f64> {
     (integral_k2 > 0.0).then(|| ((integral_k2 - kept_k2) / integral_k2).max(0.0))
 }
 
@@ -111,7 +95,7 @@ pub fn l2_difference(a: &Field, b: &Field, measure: f64) -> (f64, f64) {
 
 /// (∫ (exact − B̂)², ∫ exact²) for a 1D field on a domain of length `measure`, with a rule of
 /// `m + 12` points on every cell (exact is not a polynomial).
-pub fn l2_against(field: &Field, measure: f64, exact: impl Fn(f64) -> f64) -> (f64, f64) {
+pub(crate) fn l2_against(field: &Field, measure: f64, exact: impl Fn(f64) -> f64) -> (f64, f64) {
     let rule = Rule::gauss(field.order + 12);
     let (mut diff, mut norm) = (0.0, 0.0);
     for leaf in &field.leaves {
@@ -129,7 +113,7 @@ pub fn l2_against(field: &Field, measure: f64, exact: impl Fn(f64) -> f64) -> (f
 /// Absorbed is what the fronts absorb, (1 − ρ) ∫ H: light that leaves an open scene or falls
 /// on the (black) back of a surface is not in it, so the ratio is 1 only in a closed scene
 /// whose backs no light reaches.
-pub fn energy(
+pub(crate) fn energy(
     emission: &[Field],
     irradiance: &[Field],
     rho: &[Rgb],

@@ -6,8 +6,8 @@ use utoipa::ToSchema;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct JobResult {
     /// The scene's name, when it has one.
-    pub scene: Option<String>,
-    pub kind: String,
+    pub(crate) scene: Option<String>,
+    pub(crate) kind: String,
     /// The solver settings in effect, every default applied.
     pub solver: SolverEcho,
     pub surfaces: Vec<SurfaceResult>,
@@ -21,7 +21,7 @@ pub struct JobResult {
     /// Geometry that the format allows but that cannot be physically right (surfaces that
     /// cross or overlap): the solve ran all the same. Empty when there is none.
     #[serde(default)]
-    pub warnings: Vec<Warning>,
+    pub(crate) warnings: Vec<Warning>,
 }
 
 /// Something about the scene that the solve went ahead with but the author should know.
@@ -34,18 +34,18 @@ pub struct Warning {
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct SolverEcho {
-    pub method: String,
-    pub basis: String,
-    pub order: usize,
-    pub resolution: usize,
+    pub(crate) method: String,
+    pub(crate) basis: String,
+    pub(crate) order: usize,
+    pub(crate) resolution: usize,
     /// `"all"`, `{"top": N}`, `{"fraction": f}` or `{"threshold": t}`.
     #[schema(value_type = Value)]
-    pub keep: serde_json::Value,
+    pub(crate) keep: serde_json::Value,
     pub iteration: String,
-    pub tolerance: f64,
-    pub max_iterations: usize,
-    pub quadrature: usize,
-    pub epsilon: f64,
+    pub(crate) tolerance: f64,
+    pub(crate) max_iterations: usize,
+    pub(crate) quadrature: usize,
+    pub(crate) epsilon: f64,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
@@ -89,13 +89,13 @@ pub struct Metrics {
     /// Eq. (6), when a reference is set.
     pub radiosity_relative_error: Option<f64>,
     /// What eq. (6) was measured against: "exact" or "order m, resolution n".
-    pub reference: Option<String>,
+    pub(crate) reference: Option<String>,
     pub iterations: usize,
-    pub converged: bool,
+    pub(crate) converged: bool,
     /// ‖E + ρKB − B‖ / ‖B‖ after the last sweep.
-    pub final_residual: f64,
+    pub(crate) final_residual: f64,
     /// The relative change of B at each sweep.
-    pub residual_history: Vec<f64>,
+    pub(crate) residual_history: Vec<f64>,
     /// Evaluations of the kernel K(x, y) that the matrix or the links took (in 3D a
     /// closed-form point-to-polygon form factor counts as one).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -107,8 +107,8 @@ pub struct Metrics {
 /// their ratio, which is 1 in a closed scene.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct EnergyBalance {
-    pub emitted: [f64; 3],
-    pub absorbed: [f64; 3],
+    pub(crate) emitted: [f64; 3],
+    pub(crate) absorbed: [f64; 3],
     /// absorbed / emitted.
     pub balance: [f64; 3],
 }
@@ -124,5 +124,5 @@ pub struct HierarchyStats {
     /// 3d: the smallest element edge the refinement could go down to, in scene units: the
     /// document's `min_element_size` or its default from the scene's size.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub min_element_size: Option<f64>,
+    pub(crate) min_element_size: Option<f64>,
 }

@@ -5,26 +5,26 @@ use std::ops::{Add, Mul, Sub};
 
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct V2 {
-    pub x: f64,
-    pub y: f64,
+    pub(super) x: f64,
+    pub(super) y: f64,
 }
 
 impl V2 {
-    pub const fn new(x: f64, y: f64) -> V2 {
+    pub(super) const fn new(x: f64, y: f64) -> V2 {
         V2 { x, y }
     }
-    pub fn dot(self, o: V2) -> f64 {
+    pub(super) fn dot(self, o: V2) -> f64 {
         self.x * o.x + self.y * o.y
     }
     /// z component of the cross product.
-    pub fn cross(self, o: V2) -> f64 {
+    pub(super) fn cross(self, o: V2) -> f64 {
         self.x * o.y - self.y * o.x
     }
-    pub fn norm(self) -> f64 {
+    pub(super) fn norm(self) -> f64 {
         self.x.hypot(self.y)
     }
     /// Turned +90° (counter-clockwise).
-    pub fn perp(self) -> V2 {
+    pub(super) fn perp(self) -> V2 {
         V2::new(-self.y, self.x)
     }
 }
@@ -58,16 +58,16 @@ impl Mul<f64> for V2 {
 
 /// A flatland surface as geometry: p(s) = a + s d, front normal n = d⊥/‖d‖.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Line {
-    pub a: V2,
-    pub b: V2,
-    pub d: V2,
-    pub n: V2,
-    pub len: f64,
+pub(super) struct Line {
+    pub(super) a: V2,
+    pub(super) b: V2,
+    d: V2,
+    pub(super) n: V2,
+    pub(super) len: f64,
 }
 
 impl Line {
-    pub fn new(a: V2, b: V2) -> Line {
+    pub(super) fn new(a: V2, b: V2) -> Line {
         let d = b - a;
         let len = d.norm();
         Line {
@@ -80,23 +80,23 @@ impl Line {
     }
 
     #[inline]
-    pub fn at(&self, s: f64) -> V2 {
+    pub(super) fn at(&self, s: f64) -> V2 {
         self.a + self.d * s
     }
 
     /// Signed distance of p from the line, positive in front.
     #[inline]
-    pub fn side(&self, p: V2) -> f64 {
+    pub(super) fn side(&self, p: V2) -> f64 {
         (p - self.a).dot(self.n)
     }
 
     /// Parameter of the point of the line nearest to p.
-    pub fn param_of(&self, p: V2) -> f64 {
+    pub(super) fn param_of(&self, p: V2) -> f64 {
         (p - self.a).dot(self.d) / (self.len * self.len)
     }
 
     /// Parameter s where the line through p and q meets this line, if they are not parallel.
-    pub fn meet(&self, p: V2, q: V2) -> Option<f64> {
+    pub(super) fn meet(&self, p: V2, q: V2) -> Option<f64> {
         let e = q - p;
         let den = self.d.cross(e);
         if den.abs() <= 1e-14 * self.len * e.norm() {
@@ -140,7 +140,7 @@ fn segments_intersect(a: V2, b: V2, c: V2, d: V2) -> bool {
 }
 
 /// Distance between the segments [a, b] and [c, d].
-pub fn segment_distance(a: V2, b: V2, c: V2, d: V2) -> f64 {
+pub(super) fn segment_distance(a: V2, b: V2, c: V2, d: V2) -> f64 {
     if segments_intersect(a, b, c, d) {
         return 0.0;
     }

@@ -45,26 +45,26 @@ const MAX_PASSES: usize = 8;
 
 /// An interval of a segment's parameter, in the tree of that segment.
 #[derive(Debug, Clone)]
-pub struct Element {
-    pub surface: usize,
-    pub range: [f64; 2],
-    pub level: u32,
-    pub children: Option<[usize; 2]>,
+struct Element {
+    surface: usize,
+    range: [f64; 2],
+    level: u32,
+    children: Option<[usize; 2]>,
     /// Coefficients in N_p = φ_p(ŝ) / √|e| (orthonormal in arc length), per channel.
-    pub e: Vec<Rgb>,
-    pub b: Vec<Rgb>,
+    e: Vec<Rgb>,
+    b: Vec<Rgb>,
     /// Gathered at this element by its own links.
-    pub h: Vec<Rgb>,
+    h: Vec<Rgb>,
     /// H from all levels, pushed down (leaves only; for the energy balance).
-    pub h_total: Vec<Rgb>,
+    h_total: Vec<Rgb>,
 }
 
 /// A link r ← s and its transfer block (row-major k × k, p of r by q of s).
 #[derive(Debug, Clone)]
-pub struct Link {
-    pub r: usize,
-    pub s: usize,
-    pub t: Vec<f64>,
+struct Link {
+    r: usize,
+    s: usize,
+    t: Vec<f64>,
 }
 
 impl Link {
@@ -82,7 +82,7 @@ impl Link {
     }
 }
 
-pub struct Hierarchy<'a> {
+struct Hierarchy<'a> {
     geo: Geometry,
     segments: &'a [Segment],
     filters: &'static Filters,
@@ -93,9 +93,9 @@ pub struct Hierarchy<'a> {
     threshold: f64,
     negative_tolerance: f64,
     rho_max: Vec<f64>,
-    pub elements: Vec<Element>,
-    pub links: Vec<Link>,
-    pub refinements: usize,
+    elements: Vec<Element>,
+    links: Vec<Link>,
+    refinements: usize,
     /// The most links the refinement may make (their k² transfers in [`LINK_BYTES`]); set
     /// `too_large` and stop there.
     max_links: usize,
@@ -106,7 +106,7 @@ pub struct Hierarchy<'a> {
 const LINK_BYTES: usize = 1 << 28;
 
 impl<'a> Hierarchy<'a> {
-    pub fn new(
+    fn new(
         segments: &'a [Segment],
         order: usize,
         resolution: usize,
@@ -698,16 +698,16 @@ impl<'a> Hierarchy<'a> {
 /// Solves a flatland scene by hierarchical wavelet radiosity.
 /// The document's settings that a flatland hierarchy needs besides order and resolution.
 #[derive(Debug, Clone, Copy)]
-pub struct Tuning {
+pub(crate) struct Tuning {
     /// Gauss points per element for the transfers.
-    pub quadrature: usize,
+    pub(crate) quadrature: usize,
     /// The oracle's tolerance, relative to the brightest emission.
-    pub epsilon: f64,
+    pub(crate) epsilon: f64,
     /// How many sorted coefficient magnitudes the result lists.
-    pub coefficients: usize,
+    pub(crate) coefficients: usize,
 }
 
-pub fn solve(
+pub(crate) fn solve(
     segments: &[Segment],
     order: usize,
     resolution: usize,

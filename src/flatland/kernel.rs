@@ -1,14 +1,14 @@
 //! The flatland kernel of the slides' eq. (4): K(x, y) = cosθx cosθy / (2 r) · V(x, y), zero
 //! unless y is in front of x and x in front of y, and Hottel's crossed strings, its closed-form
 //! integral between two unoccluded segments. The visibility factor V is not part of these
-//! functions: [`crate::flatland::visibility`] clips the integration domain to the visible
-//! parts. (The 3D kernel, eq. (3), is [`crate::three_d::transfer::kernel`].)
+//! functions: `crate::flatland::visibility` clips the integration domain to the visible
+//! parts. (The 3D kernel, eq. (3), is `crate::three_d::transfer::kernel`.)
 
 use crate::flatland::geometry::V2;
 
 /// Eq. (4) without V: cosθx cosθy / (2r) for points x, y with unit front normals nx, ny.
 #[inline(always)]
-pub fn flatland(x: V2, nx: V2, y: V2, ny: V2) -> f64 {
+pub(super) fn flatland(x: V2, nx: V2, y: V2, ny: V2) -> f64 {
     let r = y - x;
     let cx = r.dot(nx);
     let cy = -r.dot(ny);
@@ -23,7 +23,7 @@ pub fn flatland(x: V2, nx: V2, y: V2, ny: V2) -> f64 {
 /// Eq. (4) for points known to face each other (both cosines positive): no branch, so that
 /// the fill's inner loop vectorises.
 #[inline(always)]
-pub fn flatland_facing(x: V2, nx: V2, y: V2, ny: V2) -> f64 {
+pub(super) fn flatland_facing(x: V2, nx: V2, y: V2, ny: V2) -> f64 {
     let r = y - x;
     let r2 = r.dot(r);
     r.dot(nx) * -r.dot(ny) / (2.0 * r2 * r2.sqrt())

@@ -3,7 +3,7 @@
 //! method and the binary-tree hierarchy of hierarchical wavelet radiosity.
 
 pub mod geometry;
-pub mod hierarchy;
+pub(crate) mod hierarchy;
 pub mod kernel;
 pub mod projection;
-pub mod visibility;
+mod visibility;

@@ -5,7 +5,7 @@
 //! which integrates the 1/r singularity of touching segments (room corners) to full precision.
 //! Pairs that a third segment may occlude are integrated with exact visibility: the outer
 //! interval is split where the shadow topology changes, and the inner integral is taken over
-//! the visible pieces only ([`crate::flatland::visibility`]).
+//! the visible pieces only (`crate::flatland::visibility`).
 
 use crate::flatland::geometry::{segment_distance, Line, V2};
 use crate::flatland::kernel;
@@ -26,18 +26,18 @@ const MAX_Q: usize = 24;
 
 /// What is known of a pair of surfaces before any cell is integrated.
 #[derive(Debug, Clone, Default)]
-pub struct PairInfo {
+pub(super) struct PairInfo {
     /// Parameters of surface i in front of surface j, and of j in front of i.
-    pub front_i: Option<[f64; 2]>,
-    pub front_j: Option<[f64; 2]>,
+    pub(super) front_i: Option<[f64; 2]>,
+    pub(super) front_j: Option<[f64; 2]>,
     /// Surfaces that may block some ray between the two.
-    pub occluders: Vec<usize>,
+    pub(super) occluders: Vec<usize>,
 }
 
 /// The geometry of a flatland scene, with the pairwise facts the integrators need.
 pub struct Geometry {
-    pub lines: Vec<Line>,
-    pub pairs: Vec<PairInfo>,
+    pub(super) lines: Vec<Line>,
+    pairs: Vec<PairInfo>,
 }
 
 impl Geometry {
@@ -76,12 +76,12 @@ impl Geometry {
         Geometry { lines, pairs }
     }
 
-    pub fn pair(&self, i: usize, j: usize) -> &PairInfo {
+    pub(super) fn pair(&self, i: usize, j: usize) -> &PairInfo {
         &self.pairs[i * self.lines.len() + j]
     }
 
     /// Surface pairs (i < j) whose closed segments meet.
-    pub fn touching(&self) -> Vec<(usize, usize)> {
+    pub(crate) fn touching(&self) -> Vec<(usize, usize)> {
         let n = self.lines.len();
         let mut out = Vec::new();
         for i in 0..n {
@@ -110,14 +110,14 @@ fn front_range(a: &Line, b: &Line) -> Option<[f64; 2]> {
     }
 }
 
-pub fn intersect(a: [f64; 2], b: [f64; 2]) -> Option<[f64; 2]> {
+pub(super) fn intersect(a: [f64; 2], b: [f64; 2]) -> Option<[f64; 2]> {
     let lo = a[0].max(b[0]);
     let hi = a[1].min(b[1]);
     (hi > lo).then_some([lo, hi])
 }
 
 /// Builds the flatland system.
-pub fn build(
+pub(crate) fn build(
     segments: &[Segment],
     disc: Discretization,
     progress: &dyn Progress,
@@ -155,7 +155,7 @@ fn emission_coefficients(s: &Segment, len: f64, disc: Discretization) -> Vec<[f6
 
 /// E_p = ∫_{cell} E N_p = E √(L/h) ∫_{cell ∩ region} φ_p(ŝ) ds on one parameter interval,
 /// exactly (E is constant on its region).
-pub fn emission_on(s: &Segment, len: f64, cell: [f64; 2], order: usize) -> Vec<[f64; 3]> {
+pub(super) fn emission_on(s: &Segment, len: f64, cell: [f64; 2], order: usize) -> Vec<[f64; 3]> {
     let k = order + 1;
     let h = cell[1] - cell[0];
     let mut out = vec![[0.0; 3]; k];
@@ -409,7 +409,7 @@ fn contract<const K: usize>(
 }
 
 /// One pair of cells: cell a of surface i (rows) and cell b of surface j (columns).
-pub struct CellPair<'g> {
+pub(super) struct CellPair<'g> {
     li: &'g Line,
     lj: &'g Line,
     lines: &'g [Line],
@@ -427,7 +427,7 @@ pub struct CellPair<'g> {
 }
 
 impl<'g> CellPair<'g> {
-    pub fn new(
+    fn new(
         geo: &'g Geometry,
         disc: Discretization,
         i: usize,
@@ -451,7 +451,7 @@ impl<'g> CellPair<'g> {
 
     /// Two parameter intervals of any sizes: `cell_a` of surface i and `cell_b` of surface j,
     /// with the orthonormal Legendre functions of order `order` on each.
-    pub fn between(
+    pub(super) fn between(
         geo: &'g Geometry,
         (i, cell_a): (usize, [f64; 2]),
         (j, cell_b): (usize, [f64; 2]),
@@ -478,7 +478,7 @@ impl<'g> CellPair<'g> {
     }
 
     /// The same pair, integrating K² (k = 1, scale L_i L_j).
-    pub fn squared(mut self) -> CellPair<'g> {
+    fn squared(mut self) -> CellPair<'g> {
         self.squared = true;
         self.k = 1;
         self.scale = self.li.len * self.lj.len;
@@ -487,7 +487,7 @@ impl<'g> CellPair<'g> {
 
     /// Adds ∫∫ K φ_p φ_r over the cells (restricted to the front ranges) to `out` (k × k);
     /// returns the number of kernel evaluations.
-    pub fn integrate(&self, front_i: [f64; 2], front_j: [f64; 2], out: &mut [f64]) -> u64 {
+    pub(super) fn integrate(&self, front_i: [f64; 2], front_j: [f64; 2], out: &mut [f64]) -> u64 {
         let (Some(sa), Some(sb)) = (
             intersect(self.cell_a, front_i),
             intersect(self.cell_b, front_j),
@@ -690,7 +690,7 @@ impl<'g> CellPair<'g> {
 /// ∫_i ∫_j K² dy dx for every ordered pair of surfaces (i ≠ j), row-major `S × S`: the
 /// denominator of eq. (5), with the cells and Gauss points of `disc` (take them finer than the
 /// solve's). Pairs that touch diverge: skip them.
-pub fn kernel_squares(
+pub(crate) fn kernel_squares(
     geo: &Geometry,
     disc: Discretization,
     skip: impl Fn(usize, usize) -> bool + Sync,

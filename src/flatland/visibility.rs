@@ -9,11 +9,17 @@
 use crate::flatland::geometry::{Line, V2};
 
 /// Up to this many visible pieces are kept without allocating.
-pub type Pieces = smallvec::SmallVec<[[f64; 2]; 8]>;
+pub(super) type Pieces = smallvec::SmallVec<[[f64; 2]; 8]>;
 
 /// The parts of `range` (parameters of `target`) visible from `x`, which must be strictly in
 /// front of `target`, past the occluding segments `occluders`.
-pub fn visible_from(x: V2, target: &Line, range: [f64; 2], occluders: &[Line], out: &mut Pieces) {
+pub(super) fn visible_from(
+    x: V2,
+    target: &Line,
+    range: [f64; 2],
+    occluders: &[Line],
+    out: &mut Pieces,
+) {
     out.clear();
     let sx = target.side(x);
     debug_assert!(sx > 0.0);
@@ -84,7 +90,7 @@ fn shadow(x: V2, sx: f64, target: &Line, occ: &Line) -> Option<[f64; 2]> {
 
 /// Whether segment `occ` can block a ray between the sub-segments `p` and `q`: whether it meets
 /// the interior of their convex hull (touching its boundary at a point does not block).
-pub fn may_block(p: [V2; 2], q: [V2; 2], occ: [V2; 2]) -> bool {
+pub(super) fn may_block(p: [V2; 2], q: [V2; 2], occ: [V2; 2]) -> bool {
     let pts = [p[0], p[1], q[0], q[1]];
     let hull = convex_hull(pts);
     if hull.len() < 3 {

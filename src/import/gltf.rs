@@ -194,7 +194,7 @@ fn texture_mean(image: gltf::Image, buffers: &[Vec<u8>], files: Files) -> Result
     Ok(sum.map(|s| s / n))
 }
 
-pub(crate) fn parts(
+pub(super) fn parts(
     model: Model,
     files: Files,
     warnings: &mut Vec<String>,

@@ -1,9 +1,9 @@
-//! Models in, job documents out: Wavefront OBJ with its MTL ([`obj`], by `tobj`) and glTF 2.0,
-//! as `.gltf` or GLB ([`gltf`], by the `gltf` crate), each turned into a 3d job document
+//! Models in, job documents out: Wavefront OBJ with its MTL (`obj`, by `tobj`) and glTF 2.0,
+//! as `.gltf` or GLB (`gltf`, by the `gltf` crate), each turned into a 3d job document
 //! (`serde_json::Value`) with one `mesh` surface per object and material.
 //!
 //! No file or network I/O here: the model comes as bytes, and the files it refers to (the MTL of
-//! an OBJ, the buffers and images of a glTF) are asked for by name through a [`Files`] callback,
+//! an OBJ, the buffers and images of a glTF) are asked for by name through a `Files` callback,
 //! which the command line answers from the model's folder and the server from the parts of an
 //! upload.
 //!
@@ -12,8 +12,8 @@
 //! area dropped; positions a surface does not use dropped; names unique. Each of these that
 //! changes something, and a model without emission, is said in [`Imported::warnings`].
 
-pub mod gltf;
-pub mod obj;
+mod gltf;
+mod obj;
 
 use crate::scene::Limits;
 use serde_json::{json, Value};
@@ -21,13 +21,13 @@ use std::fmt;
 
 /// The files a model refers to, by the name it gives them (`mtllib`, a buffer's or image's
 /// `uri`): their bytes, or `None` when there is no such file.
-pub type Files<'a> = &'a dyn Fn(&str) -> Option<Vec<u8>>;
+type Files<'a> = &'a dyn Fn(&str) -> Option<Vec<u8>>;
 
 /// The largest reflectance an imported surface gets: the document needs ρ < 1.
 const MAX_REFLECTANCE: f64 = 0.99;
 
 /// The reflectance of a surface without a material (or whose material was not found).
-pub const DEFAULT_REFLECTANCE: f64 = 0.5;
+const DEFAULT_REFLECTANCE: f64 = 0.5;
 
 /// A triangle whose doubled area |e1 × e2| is at most this fraction of its longest edge squared
 /// is of zero area (collinear or repeated corners) and is dropped.
@@ -46,7 +46,7 @@ pub enum Format {
 
 impl Format {
     /// From a media type: `model/obj`, `model/gltf+json`, `model/gltf-binary`.
-    pub fn from_media_type(mime: &str) -> Option<Format> {
+    pub(crate) fn from_media_type(mime: &str) -> Option<Format> {
         let mime = mime.split(';').next().unwrap_or("").trim();
         match mime.to_ascii_lowercase().as_str() {
             "model/obj" => Some(Format::Obj),
@@ -64,15 +64,6 @@ impl Format {
             "gltf" => Some(Format::Gltf),
             "glb" => Some(Format::Glb),
             _ => None,
-        }
-    }
-
-    /// The media type of the format.
-    pub fn media_type(self) -> &'static str {
-        match self {
-            Format::Obj => "model/obj",
-            Format::Gltf => "model/gltf+json",
-            Format::Glb => "model/gltf-binary",
         }
     }
 }
@@ -106,7 +97,7 @@ pub struct ImportError {
 }
 
 impl ImportError {
-    pub fn new(file: &str, location: Location, message: impl Into<String>) -> ImportError {
+    fn new(file: &str, location: Location, message: impl Into<String>) -> ImportError {
         ImportError {
             file: file.to_string(),
             location,
@@ -115,7 +106,7 @@ impl ImportError {
     }
 
     /// The JSON pointer of a glTF error, or `""`.
-    pub fn pointer(&self) -> &str {
+    pub(crate) fn pointer(&self) -> &str {
         match &self.location {
             Location::Pointer(p) => p,
             _ => "",
@@ -123,7 +114,7 @@ impl ImportError {
     }
 
     /// The line of an OBJ or MTL error.
-    pub fn line(&self) -> Option<usize> {
+    pub(crate) fn line(&self) -> Option<usize> {
         match self.location {
             Location::Line(n) => Some(n),
             _ => None,
@@ -180,13 +171,13 @@ pub fn import(model: Model, files: Files, limits: &Limits) -> Result<Imported, I
 
 /// One object in one material: triangles over positions, with the material's colours as read.
 #[derive(Debug, Clone, Default)]
-pub(crate) struct Part {
-    pub object: String,
-    pub material: Option<String>,
-    pub positions: Vec<[f64; 3]>,
-    pub triangles: Vec<[u32; 3]>,
-    pub reflectance: [f64; 3],
-    pub emission: [f64; 3],
+struct Part {
+    object: String,
+    material: Option<String>,
+    positions: Vec<[f64; 3]>,
+    triangles: Vec<[u32; 3]>,
+    reflectance: [f64; 3],
+    emission: [f64; 3],
 }
 
 /// The scene's name: the file name without folders and extension.

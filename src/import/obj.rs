@@ -81,7 +81,7 @@ fn non_finite_line(text: &[u8]) -> Option<usize> {
         .map(|(i, _)| i + 1)
 }
 
-pub(crate) fn parts(
+pub(super) fn parts(
     model: Model,
     files: Files,
     warnings: &mut Vec<String>,

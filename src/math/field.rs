@@ -26,14 +26,14 @@ pub struct Leaf {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Field {
     /// 1 or 2.
-    pub dims: usize,
-    pub order: usize,
+    pub(crate) dims: usize,
+    pub(crate) order: usize,
     /// Finest cells per side; every leaf is a union of these.
-    pub res: usize,
+    pub(crate) res: usize,
     pub leaves: Vec<Leaf>,
     /// B over the triangle s + t ≤ 1 (a triangle patch), whose leaves are the triangles of
     /// the midpoint split.
-    pub tri: bool,
+    pub(crate) tri: bool,
     /// The basis of a triangle field's leaves.
     basis: Option<&'static TriangleBasis>,
     /// For each finest cell (`[t][s]`), the leaf that holds it; on a triangle field, for each
@@ -77,7 +77,7 @@ impl Field {
 
     /// A field over the triangle s + t ≤ 1 from the leaves of its midpoint split, aligned to a
     /// `res` grid (a power of two).
-    pub fn triangle(order: usize, res: usize, leaves: Vec<Leaf>) -> Field {
+    pub(crate) fn triangle(order: usize, res: usize, leaves: Vec<Leaf>) -> Field {
         let mut lookup = vec![u32::MAX; 2 * res * res];
         for (i, l) in leaves.iter().enumerate() {
             let s0 = (l.s[0] * res as f64).round() as usize;
@@ -99,7 +99,7 @@ impl Field {
     }
 
     /// A uniform 1D field of `cells` cells from local coefficients `[cell][p]`.
-    pub fn uniform_line(order: usize, cells: usize, local: &[[f64; 3]]) -> Field {
+    pub(crate) fn uniform_line(order: usize, cells: usize, local: &[[f64; 3]]) -> Field {
         let k = order + 1;
         let h = 1.0 / cells as f64;
         let leaves = (0..cells)
@@ -134,7 +134,7 @@ impl Field {
     }
 
     /// The leaf that holds (s, t).
-    pub fn leaf_at(&self, s: f64, t: f64) -> &Leaf {
+    pub(crate) fn leaf_at(&self, s: f64, t: f64) -> &Leaf {
         let cell = |x: f64| ((x * self.res as f64) as usize).min(self.res - 1);
         if self.tri {
             // a point outside the triangle is taken at its nearest point on the diagonal
@@ -203,7 +203,7 @@ impl Field {
 
     /// ∫ B over the parameter rectangle `[s0,s1] × [t0,t1]` (in 1D only `s` counts), exactly:
     /// a Gauss rule of ⌈(m+1)/2⌉ points on each leaf piece integrates the polynomial exactly.
-    pub fn integral(&self, s: [f64; 2], t: [f64; 2]) -> [f64; 3] {
+    fn integral(&self, s: [f64; 2], t: [f64; 2]) -> [f64; 3] {
         if self.tri {
             // over a triangle only the whole is asked for (its mean times its measure, ½)
             debug_assert!(s == [0.0, 1.0] && t == [0.0, 1.0]);
@@ -254,7 +254,7 @@ impl Field {
     }
 
     /// Mean of B over the whole surface.
-    pub fn mean(&self) -> [f64; 3] {
+    pub(crate) fn mean(&self) -> [f64; 3] {
         if self.tri {
             // each leaf's share of the triangle is h², its mean the first coefficient
             let mut out = [0.0; 3];
@@ -268,7 +268,7 @@ impl Field {
     }
 
     /// Cell means on a `grid` (1D) or `grid × grid` (2D, rows by t then s) split.
-    pub fn cell_means(&self, grid: usize) -> Vec<[f64; 3]> {
+    pub(crate) fn cell_means(&self, grid: usize) -> Vec<[f64; 3]> {
         if self.tri {
             // a triangle is one cell (scene.md)
             return vec![self.mean()];

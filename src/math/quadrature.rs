@@ -2,7 +2,7 @@
 //!
 //! Nodes and weights come from the `gauss-quad` crate (Bogaert's O(n) algorithm, accurate to
 //! machine precision for any n). A q-point rule integrates polynomials of degree ≤ 2q − 1
-//! exactly; [`Rule::for_degree`] picks the smallest such rule.
+//! exactly; `Rule::for_degree` picks the smallest such rule.
 
 use std::num::NonZeroUsize;
 use std::sync::OnceLock;
@@ -10,16 +10,16 @@ use std::sync::OnceLock;
 /// A Gauss–Legendre rule mapped to [0, 1]: nodes in increasing order, weights summing to 1.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Rule {
-    pub nodes: Vec<f64>,
-    pub weights: Vec<f64>,
+    pub(crate) nodes: Vec<f64>,
+    pub(crate) weights: Vec<f64>,
 }
 
 /// Rules with 1 to this many points are cached.
-pub const MAX_CACHED: usize = 128;
+pub(crate) const MAX_CACHED: usize = 128;
 
 impl Rule {
     /// The q-point rule on [0, 1] (q ≥ 1), exact for degree ≤ 2q − 1.
-    pub fn gauss(q: usize) -> &'static Rule {
+    pub(crate) fn gauss(q: usize) -> &'static Rule {
         static CACHE: OnceLock<Vec<Rule>> = OnceLock::new();
         let cache = CACHE.get_or_init(|| (1..=MAX_CACHED).map(Rule::compute).collect());
         assert!((1..=MAX_CACHED).contains(&q), "Gauss rule with {q} points");
@@ -27,7 +27,7 @@ impl Rule {
     }
 
     /// The smallest Gauss rule exact for polynomials of degree `d`.
-    pub fn for_degree(d: usize) -> &'static Rule {
+    pub(crate) fn for_degree(d: usize) -> &'static Rule {
         Rule::gauss(d / 2 + 1)
     }
 
@@ -45,12 +45,8 @@ impl Rule {
         }
     }
 
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.nodes.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
     }
 
     /// ∫_a^b f.
@@ -64,7 +60,7 @@ impl Rule {
     }
 
     /// Points and weights of the rule mapped to [a, b].
-    pub fn mapped(&self, a: f64, b: f64) -> impl Iterator<Item = (f64, f64)> + '_ {
+    pub(crate) fn mapped(&self, a: f64, b: f64) -> impl Iterator<Item = (f64, f64)> + '_ {
         let h = b - a;
         self.nodes
             .iter()
@@ -73,7 +69,12 @@ impl Rule {
     }
 
     /// The tensor rule on [a0,b0]×[a1,b1]: ∫∫ f(s, t) ds dt.
-    pub fn integrate2(&self, s: [f64; 2], t: [f64; 2], mut f: impl FnMut(f64, f64) -> f64) -> f64 {
+    pub(crate) fn integrate2(
+        &self,
+        s: [f64; 2],
+        t: [f64; 2],
+        mut f: impl FnMut(f64, f64) -> f64,
+    ) -> f64 {
         let mut sum = 0.0;
         for (x, wx) in self.mapped(s[0], s[1]) {
             for (y, wy) in self.mapped(t[0], t[1]) {

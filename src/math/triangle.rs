@@ -44,7 +44,7 @@
 //!
 //! A triangle (v₀, v₁, v₂) splits at its edge midpoints m₀₁, m₁₂, m₀₂ into four children of a
 //! quarter of its area, each the affine image of the reference triangle with its vertices, in
-//! order, at ([`CHILDREN`], in the parent's (s, t)):
+//! order, at (`CHILDREN`, in the parent's (s, t)):
 //!
 //! | child | vertices            | map F_c(s, t) from the child's (s, t) to the parent's |
 //! | ----- | ------------------- | ----------------------------------------------------- |
@@ -96,7 +96,7 @@ use std::sync::{Mutex, OnceLock};
 /// upper-right half (the right angle at (s1, t1), turned by half a turn): the triangles of the
 /// four-way split of a triangle whose (s, t) square is the unit one.
 #[inline(always)]
-pub fn local_in_half(s: [f64; 2], t: [f64; 2], upper: bool, x: f64, y: f64) -> (f64, f64) {
+pub(crate) fn local_in_half(s: [f64; 2], t: [f64; 2], upper: bool, x: f64, y: f64) -> (f64, f64) {
     let h = s[1] - s[0];
     if upper {
         ((s[1] - x) / h, (t[1] - y) / h)
@@ -108,7 +108,7 @@ pub fn local_in_half(s: [f64; 2], t: [f64; 2], upper: bool, x: f64, y: f64) -> (
 /// The halves of the cells of an `n × n` grid over a square that its lower-left half (or with
 /// `upper` its upper-right half) is made of: `(i, j, upper half of the cell)`, i along s. A cell
 /// wholly inside gives both halves; one on the diagonal, the half on the triangle's side.
-pub fn cell_halves(n: usize, upper: bool) -> impl Iterator<Item = (usize, usize, bool)> {
+pub(crate) fn cell_halves(n: usize, upper: bool) -> impl Iterator<Item = (usize, usize, bool)> {
     (0..n * n).flat_map(move |c| {
         let (i, j) = (c % n, c / n);
         // (a, b): the cell counted from the triangle's right angle
@@ -137,7 +137,7 @@ const VERTICES: [[f64; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
 
 /// The midpoint split's children in the parent's reference coordinates: child c is the affine
 /// image of the reference triangle whose vertex i is `CHILDREN[c][i]` (see the module's table).
-pub const CHILDREN: [[[f64; 2]; 3]; 4] = [
+const CHILDREN: [[[f64; 2]; 3]; 4] = [
     [[0.0, 0.0], [0.5, 0.0], [0.0, 0.5]],
     [[0.5, 0.0], [1.0, 0.0], [0.5, 0.5]],
     [[0.0, 0.5], [0.5, 0.5], [0.0, 1.0]],
@@ -145,7 +145,7 @@ pub const CHILDREN: [[[f64; 2]; 3]; 4] = [
 ];
 
 /// The number of polynomials of total degree ≤ m in two variables: (m + 1)(m + 2)/2.
-pub const fn dimension(m: usize) -> usize {
+pub(crate) const fn dimension(m: usize) -> usize {
     (m + 1) * (m + 2) / 2
 }
 
@@ -174,7 +174,7 @@ pub fn locate(s: f64, t: f64) -> (usize, [f64; 2]) {
 }
 
 /// The four children of the triangle with vertices `v` (in any dimension), in the order and
-/// with the vertex order of [`CHILDREN`].
+/// with the vertex order of `CHILDREN`.
 pub fn split<const D: usize>(v: &[[f64; D]; 3]) -> [[[f64; D]; 3]; 4] {
     let mid =
         |a: usize, b: usize| -> [f64; D] { std::array::from_fn(|k| 0.5 * (v[a][k] + v[b][k])) };
@@ -232,17 +232,17 @@ fn dubiner(m: usize, s: f64, t: f64, out: &mut [f64]) {
 #[derive(Debug, Clone, PartialEq)]
 pub struct TriangleRule {
     /// Points (s, t), all inside the triangle.
-    pub points: Vec<[f64; 2]>,
+    pub(crate) points: Vec<[f64; 2]>,
     /// Positive weights summing to 1.
-    pub weights: Vec<f64>,
+    pub(crate) weights: Vec<f64>,
     /// The total degree to which it is exact.
-    pub degree: usize,
+    degree: usize,
 }
 
 impl TriangleRule {
     /// The rule exact for total degree `d` (d ≤ 2 · [`MAX_CACHED`] − 2), computed once and
     /// cached: (⌊d/2⌋ + 1)(⌈d/2⌉ + 1) points.
-    pub fn for_degree(d: usize) -> &'static TriangleRule {
+    pub(crate) fn for_degree(d: usize) -> &'static TriangleRule {
         static CACHE: OnceLock<Mutex<Vec<Option<&'static TriangleRule>>>> = OnceLock::new();
         assert!(d + 2 <= 2 * MAX_CACHED, "triangle rule of degree {d}");
         let cache = CACHE.get_or_init(|| Mutex::new(Vec::new()));
@@ -299,19 +299,19 @@ impl TriangleRule {
 #[derive(Debug, Clone, PartialEq)]
 pub struct TriangleBasis {
     /// The total degree m.
-    pub m: usize,
+    m: usize,
     /// The number of functions, (m + 1)(m + 2)/2.
-    pub n: usize,
+    n: usize,
     /// The two-scale coefficients of the four children: `h[c][j * n + i]` = H^c_ji =
     /// ∫_{T_c} ψ_j χ^c_i dA, parent function j and function i of child c.
-    pub h: [Vec<f64>; 4],
+    h: [Vec<f64>; 4],
     /// φ_j at the three vertices.
     vertices: [Vec<f64>; 3],
 }
 
 impl TriangleBasis {
     /// The basis of total degree ≤ `m`, computed once and cached.
-    pub fn of_order(m: usize) -> &'static TriangleBasis {
+    pub(crate) fn of_order(m: usize) -> &'static TriangleBasis {
         static CACHE: OnceLock<Mutex<Vec<Option<&'static TriangleBasis>>>> = OnceLock::new();
         let cache = CACHE.get_or_init(|| Mutex::new(Vec::new()));
         let mut c = cache.lock().unwrap_or_else(|e| e.into_inner());
@@ -351,7 +351,7 @@ impl TriangleBasis {
 
     /// φ_0 … φ_{n−1} at the reference point (s, t) into `out` (length n): orthonormal in the
     /// mean, so the element's ψ_j = φ_j / √A.
-    pub fn eval(&self, s: f64, t: f64, out: &mut [f64]) {
+    pub(crate) fn eval(&self, s: f64, t: f64, out: &mut [f64]) {
         assert_eq!(out.len(), self.n);
         dubiner(self.m, s, t, out);
     }
@@ -409,7 +409,12 @@ impl TriangleBasis {
 
     /// Push: the coefficients on child `child` of the parent's polynomial `parent` (exact),
     /// written into `out`.
-    pub fn push<const C: usize>(&self, parent: &[[f64; C]], child: usize, out: &mut [[f64; C]]) {
+    pub(crate) fn push<const C: usize>(
+        &self,
+        parent: &[[f64; C]],
+        child: usize,
+        out: &mut [[f64; C]],
+    ) {
         let n = self.n;
         let h = &self.h[child];
         for (i, o) in out[..n].iter_mut().enumerate() {
@@ -427,7 +432,12 @@ impl TriangleBasis {
     /// Pull: adds the L² projection onto the parent's space of child `child`'s polynomial
     /// `coeffs` to `parent`. Summed over the four children, this is the parent's projection of
     /// the piecewise polynomial.
-    pub fn pull<const C: usize>(&self, coeffs: &[[f64; C]], child: usize, parent: &mut [[f64; C]]) {
+    pub(crate) fn pull<const C: usize>(
+        &self,
+        coeffs: &[[f64; C]],
+        child: usize,
+        parent: &mut [[f64; C]],
+    ) {
         let n = self.n;
         let h = &self.h[child];
         for (j, p) in parent[..n].iter_mut().enumerate() {

@@ -60,7 +60,7 @@ fn forward_rgb(layout: Layout, v: &mut [[f64; 3]]) {
     }
 }
 
-pub fn inverse_rgb(layout: Layout, v: &mut [[f64; 3]]) {
+pub(crate) fn inverse_rgb(layout: Layout, v: &mut [[f64; 3]]) {
     for c in 0..3 {
         let mut ch: Vec<f64> = v.iter().map(|x| x[c]).collect();
         inverse_vector(layout, &mut ch);
@@ -95,21 +95,21 @@ pub fn to_wavelet(system: &mut System, progress: &dyn Progress) -> Result<(), Ca
 /// A compressed sparse row matrix.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Csr {
-    pub n: usize,
-    pub row_ptr: Vec<usize>,
-    pub cols: Vec<u32>,
-    pub vals: Vec<f64>,
+    pub(crate) n: usize,
+    pub(super) row_ptr: Vec<usize>,
+    pub(super) cols: Vec<u32>,
+    pub(super) vals: Vec<f64>,
 }
 
 impl Csr {
     pub fn nnz(&self) -> usize {
         self.vals.len()
     }
-    pub fn row(&self, i: usize) -> (&[u32], &[f64]) {
+    pub(crate) fn row(&self, i: usize) -> (&[u32], &[f64]) {
         let r = self.row_ptr[i]..self.row_ptr[i + 1];
         (&self.cols[r.clone()], &self.vals[r])
     }
-    pub fn diagonal(&self, i: usize) -> f64 {
+    fn diagonal(&self, i: usize) -> f64 {
         let (c, v) = self.row(i);
         c.iter()
             .position(|&j| j as usize == i)
@@ -121,13 +121,13 @@ impl Csr {
 /// when more than a third of the entries are kept (a CSR copy would then cost more memory than
 /// the dense matrix it came from).
 #[derive(Debug, Clone)]
-pub enum KeptMatrix {
+pub(crate) enum KeptMatrix {
     Sparse(Csr),
     Dense(Dense),
 }
 
 impl KeptMatrix {
-    pub fn operator(&self) -> &dyn Operator {
+    pub(crate) fn operator(&self) -> &dyn Operator {
         match self {
             KeptMatrix::Sparse(c) => c,
             KeptMatrix::Dense(d) => d,
@@ -225,21 +225,17 @@ impl Ranking {
         })
     }
 
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.len
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-
-    pub fn nonzero(&self) -> usize {
+    fn nonzero(&self) -> usize {
         self.len - self.zeros as usize
     }
 
     /// For each rank (0 = largest), the magnitude there and the first rank holding that same
     /// magnitude. `values` must be the slice the ranking was built from.
-    pub fn locate(&self, values: &[f64], ranks: &[usize]) -> Vec<(f64, usize)> {
+    pub(crate) fn locate(&self, values: &[f64], ranks: &[usize]) -> Vec<(f64, usize)> {
         if self.buckets.is_empty() {
             return ranks
                 .iter()
@@ -299,7 +295,7 @@ impl Ranking {
 }
 
 /// `count` ranks evenly spaced from the largest to the smallest entry.
-pub fn sample_ranks(len: usize, count: usize) -> Vec<usize> {
+pub(crate) fn sample_ranks(len: usize, count: usize) -> Vec<usize> {
     if len == 0 || count == 0 {
         return vec![];
     }
@@ -382,7 +378,7 @@ impl Selector {
 /// copy would then cost more memory than the matrix). Also returns the number of entries kept,
 /// the smallest magnitude kept, and Σ K_ij² of the kept entries per block of surfaces
 /// (`S × S` for blocks of `per` rows and columns).
-pub fn keep_entries(
+pub(crate) fn keep_entries(
     mut m: Dense,
     keep: Keep,
     ranking: &Ranking,
@@ -485,7 +481,7 @@ pub struct MagnitudePicture {
     pub links: bool,
 }
 
-pub fn picture(m: &Dense, max_side: usize, cut: f64) -> MagnitudePicture {
+pub(crate) fn picture(m: &Dense, max_side: usize, cut: f64) -> MagnitudePicture {
     let block = m.n.div_ceil(max_side.max(1)).max(1);
     let side = m.n.div_ceil(block);
     let mut values = vec![0.0f64; side * side];
@@ -508,7 +504,7 @@ pub fn picture(m: &Dense, max_side: usize, cut: f64) -> MagnitudePicture {
 /// A picture of an operator given as blocks of its `n` rows and columns (the links of a
 /// hierarchy): each block `(rows, columns, magnitude)` fills the picture cells it covers with
 /// the largest magnitude among those covering them.
-pub fn block_picture(
+pub(crate) fn block_picture(
     n: usize,
     max_side: usize,
     blocks: impl Iterator<Item = (std::ops::Range<usize>, std::ops::Range<usize>, f64)>,
@@ -534,7 +530,7 @@ pub fn block_picture(
 }
 
 /// [`picture`] of a sparse matrix.
-pub fn picture_sparse(m: &Csr, max_side: usize, cut: f64) -> MagnitudePicture {
+pub(crate) fn picture_sparse(m: &Csr, max_side: usize, cut: f64) -> MagnitudePicture {
     let block = m.n.div_ceil(max_side.max(1)).max(1);
     let side = m.n.div_ceil(block);
     let mut values = vec![0.0f64; side * side];

@@ -11,12 +11,12 @@ use crate::scene::Rgb;
 /// A dense row-major square matrix.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Dense {
-    pub n: usize,
+    pub(super) n: usize,
     pub data: Vec<f64>,
 }
 
 impl Dense {
-    pub fn zeros(n: usize) -> Dense {
+    pub(crate) fn zeros(n: usize) -> Dense {
         Dense {
             n,
             data: vec![0.0; n * n],
@@ -26,11 +26,11 @@ impl Dense {
     pub fn get(&self, i: usize, j: usize) -> f64 {
         self.data[i * self.n + j]
     }
-    pub fn row(&self, i: usize) -> &[f64] {
+    pub(super) fn row(&self, i: usize) -> &[f64] {
         &self.data[i * self.n..(i + 1) * self.n]
     }
     /// In-place transpose, blocked for the cache.
-    pub fn transpose(&mut self) {
+    pub(super) fn transpose(&mut self) {
         let n = self.n;
         const B: usize = 32;
         for ib in (0..n).step_by(B) {
@@ -48,7 +48,7 @@ impl Dense {
 
 /// How the coefficients of one surface are laid out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Layout {
+pub(crate) enum Layout {
     /// n cells × k = m + 1 Legendre coefficients, `[cell][p]`.
     Line { cells: usize, k: usize },
     /// n × n cells × k² tensor coefficients, `[cell_t][cell_s][p_t][p_s]`.
@@ -56,21 +56,18 @@ pub enum Layout {
 }
 
 impl Layout {
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         match *self {
             Layout::Line { cells, k } => cells * k,
             Layout::Square { cells, k } => cells * cells * k * k,
         }
     }
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-    pub fn k(&self) -> usize {
+    pub(crate) fn k(&self) -> usize {
         match *self {
             Layout::Line { k, .. } | Layout::Square { k, .. } => k,
         }
     }
-    pub fn cells(&self) -> usize {
+    pub(crate) fn cells(&self) -> usize {
         match *self {
             Layout::Line { cells, .. } | Layout::Square { cells, .. } => cells,
         }
@@ -80,8 +77,8 @@ impl Layout {
 /// The discrete radiosity system in the scaling basis.
 #[derive(Debug, Clone)]
 pub struct System {
-    pub layout: Layout,
-    pub surfaces: usize,
+    pub(crate) layout: Layout,
+    pub(crate) surfaces: usize,
     /// K without ρ.
     pub matrix: Dense,
     /// E per channel.
@@ -91,9 +88,9 @@ pub struct System {
     /// Length or area of each surface.
     pub measure: Vec<f64>,
     /// Pairs of surfaces (i < j) that touch: ∫∫K² diverges there, so eq. (5) leaves them out.
-    pub touching: Vec<(usize, usize)>,
+    pub(crate) touching: Vec<(usize, usize)>,
     /// Kernel evaluations the matrix took, where the integrator counts them.
-    pub kernel_evaluations: Option<u64>,
+    pub(crate) kernel_evaluations: Option<u64>,
 }
 
 impl System {
@@ -116,7 +113,7 @@ pub struct Discretization {
 /// Gauss points needed on a pair of cells at distance `dist` apart, of size `size`, for the
 /// quadrature error of a kernel analytic off the diagonal to be about 1e-13: the error of a
 /// q-point rule decays like ρ^(−2q), ρ the Bernstein ellipse through the nearest singularity.
-pub fn points_for_separation(dist: f64, size: f64) -> usize {
+pub(crate) fn points_for_separation(dist: f64, size: f64) -> usize {
     let a = 1.0 + 2.0 * dist / size.max(1e-300);
     let rho = a + (a * a - 1.0).max(0.0).sqrt();
     let q = (15.0 / rho.ln()).ceil();

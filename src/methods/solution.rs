@@ -54,24 +54,24 @@ pub struct Solution {
     /// B as the images show it, where that differs from `fields`: on an element that a
     /// solid partly covers, the polynomial of its exposed part up to the outline
     /// ([`crate::three_d::cover`]), where `fields` holds the element's projection.
-    pub shown: Option<Vec<Field>>,
-    pub emission: Vec<Field>,
-    pub irradiance: Vec<Field>,
-    pub basis_size: usize,
+    pub(crate) shown: Option<Vec<Field>>,
+    pub(crate) emission: Vec<Field>,
+    pub(crate) irradiance: Vec<Field>,
+    pub(crate) basis_size: usize,
     pub matrix_entries: usize,
     pub kept_entries: usize,
-    pub cut: f64,
+    pub(crate) cut: f64,
     /// Sampled sorted magnitudes of the matrix: (rank, magnitude), decreasing.
-    pub magnitudes: Vec<(usize, f64)>,
-    pub picture: Option<MagnitudePicture>,
-    pub solved: Solved,
+    pub(crate) magnitudes: Vec<(usize, f64)>,
+    pub(crate) picture: Option<MagnitudePicture>,
+    pub(crate) solved: Solved,
     /// Eq. (5) and the surface pairs it left out.
-    pub kernel_error: Option<f64>,
-    pub left_out: Vec<(usize, usize)>,
-    pub hierarchy: Option<HierarchyStats>,
-    pub timings: BTreeMap<String, f64>,
+    pub(crate) kernel_error: Option<f64>,
+    pub(crate) left_out: Vec<(usize, usize)>,
+    pub(crate) hierarchy: Option<HierarchyStats>,
+    pub(crate) timings: BTreeMap<String, f64>,
     /// Σ K_ij² of the kept entries per (row surface, column surface), `S × S`, for eq. (5).
-    pub kept_squares: Vec<f64>,
+    pub(crate) kept_squares: Vec<f64>,
     /// Kernel evaluations the matrix (or the links) took, where they are counted.
-    pub kernel_evaluations: Option<u64>,
+    pub(crate) kernel_evaluations: Option<u64>,
 }

@@ -23,13 +23,13 @@ pub struct Settings {
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Solved {
-    pub b: Vec<Rgb>,
-    pub iterations: usize,
+    pub(crate) b: Vec<Rgb>,
+    pub(crate) iterations: usize,
     /// Relative change at each sweep.
-    pub history: Vec<f64>,
+    pub(crate) history: Vec<f64>,
     /// ‖E + ρKB − B‖ / ‖B‖ at the end.
-    pub residual: f64,
-    pub converged: bool,
+    pub(crate) residual: f64,
+    pub(crate) converged: bool,
 }
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -165,7 +165,7 @@ fn sweep_row(
 }
 
 /// ‖E + ρKB − B‖ / ‖B‖.
-pub fn residual(k: &dyn Operator, rho: &[Rgb], e: &[Rgb], b: &[Rgb]) -> f64 {
+fn residual(k: &dyn Operator, rho: &[Rgb], e: &[Rgb], b: &[Rgb]) -> f64 {
     let kb = multiply(k, b);
     let mut r = 0.0;
     for i in 0..k.size() {
@@ -182,7 +182,7 @@ pub fn residual(k: &dyn Operator, rho: &[Rgb], e: &[Rgb], b: &[Rgb]) -> f64 {
 }
 
 /// K B for three channels.
-pub fn multiply(k: &dyn Operator, b: &[Rgb]) -> Vec<Rgb> {
+pub(crate) fn multiply(k: &dyn Operator, b: &[Rgb]) -> Vec<Rgb> {
     (0..k.size()).into_par_iter().map(|i| k.dot(i, b)).collect()
 }
 

@@ -59,7 +59,7 @@ pub fn render_fields(
 }
 
 /// The scene seen by a camera that frames the patches `patches` (a mesh surface's picture).
-pub fn view_of(
+pub(super) fn view_of(
     job: &Job,
     fields: &[Field],
     patches: std::ops::Range<usize>,
@@ -78,7 +78,7 @@ pub fn view_of(
 /// `scene.glb` shares with `image.png`.
 #[derive(Debug, Clone)]
 pub struct Shot {
-    pub image: RgbImage,
+    pub(super) image: RgbImage,
     /// The radiance (B/π) shown as white.
     pub white: f64,
     /// The camera, the document's or the one framed automatically.
@@ -194,7 +194,7 @@ pub fn surface_image(field: &Field, width: u32, height: u32, exposure: f64) -> R
 /// direction with the most pixels of a coarse probe image on the front of a surface. A scene
 /// seen mostly from behind from every side (a closed room, two plates facing each other)
 /// is looked at from its centre instead, at 90°, along the axis that sees most.
-pub fn frame(geo: &[Parallelogram], bvh: &Bvh) -> Camera {
+fn frame(geo: &[Parallelogram], bvh: &Bvh) -> Camera {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for q in geo {

@@ -28,21 +28,21 @@ use std::collections::BTreeMap;
 /// One surface as lit triangles.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct LitMesh {
-    pub name: String,
-    pub positions: Vec<[f32; 3]>,
+    name: String,
+    positions: Vec<[f32; 3]>,
     /// Linear RGB in [0, 1], one per position.
-    pub colours: Vec<[f32; 3]>,
+    colours: Vec<[f32; 3]>,
     /// Counter-clockwise seen from the front.
     pub triangles: Vec<[u32; 3]>,
 }
 
 /// The displayed colour of B: radiance B/π over `white`, clamped to [0, 1], linear.
-pub fn colour(b: [f64; 3], white: f64) -> [f32; 3] {
+fn colour(b: [f64; 3], white: f64) -> [f32; 3] {
     b.map(|v| ((v / std::f64::consts::PI) / white).clamp(0.0, 1.0) as f32)
 }
 
 /// A parallelogram `p(s,t) = p0 + s (p1 − p0) + t (p3 − p0)` lit by its field: the leaves as
-/// triangles without T-vertices, coloured by [`colour`] with the given white point.
+/// triangles without T-vertices, coloured by `colour` with the given white point.
 pub fn parallelogram(name: &str, corners: &[[f64; 3]; 4], field: &Field, white: f64) -> LitMesh {
     let n = field.res as u32;
     let [p0, p1, _, p3] = *corners;
@@ -211,7 +211,7 @@ fn triangles(
 }
 
 /// `scene.glb` of a solved 3D job, with the white point and camera of its `image.png`.
-pub fn scene(job: &Job, fields: &[Field], white: f64, view: Option<View>) -> Vec<u8> {
+pub(super) fn scene(job: &Job, fields: &[Field], white: f64, view: Option<View>) -> Vec<u8> {
     write(
         job.scene.name.as_deref(),
         &lit_meshes(job, fields, white),
@@ -248,9 +248,9 @@ fn mean_at(field: &Field, i: u32, j: u32) -> [f64; 3] {
 /// The camera of `image.png`, for the viewer to start from.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct View {
-    pub camera: Camera,
+    pub(super) camera: Camera,
     /// Width over height.
-    pub aspect: f64,
+    pub(super) aspect: f64,
 }
 
 const ARRAY_BUFFER: u32 = 34962;

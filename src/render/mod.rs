@@ -21,11 +21,11 @@ use rayon::prelude::*;
 /// All images of a job, PNG-encoded.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Images {
-    pub image: Vec<u8>,
-    pub sparsity: Vec<u8>,
-    pub coefficients: Vec<u8>,
+    image: Vec<u8>,
+    sparsity: Vec<u8>,
+    coefficients: Vec<u8>,
     /// `(surface name, png)` in document order.
-    pub surfaces: Vec<(String, Vec<u8>)>,
+    surfaces: Vec<(String, Vec<u8>)>,
     /// 3d: `scene.glb`, the solved scene as binary glTF.
     pub glb: Option<Vec<u8>>,
 }
@@ -191,7 +191,7 @@ fn surface_range(f: &Field) -> (f64, f64) {
 }
 
 /// B to a display colour: linear scale to `white`, clamped, sRGB-like gamma.
-pub fn tone(v: [f64; 3], white: f64) -> Rgb<u8> {
+fn tone(v: [f64; 3], white: f64) -> Rgb<u8> {
     let c = |x: f64| {
         let x = (x / white).clamp(0.0, 1.0);
         (x.powf(1.0 / 2.2) * 255.0).round() as u8

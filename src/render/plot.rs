@@ -92,7 +92,7 @@ fn channels_differ(fields: &[Field]) -> bool {
 
 /// `image.png` of flatland and fredholm: B against the parameter along each surface, one panel
 /// per surface (up to six; more share one chart), one line per channel when channels differ.
-pub fn radiosity(job: &Job, names: &[String], fields: &[Field], w: u32, h: u32) -> RgbImage {
+pub(super) fn radiosity(job: &Job, names: &[String], fields: &[Field], w: u32, h: u32) -> RgbImage {
     let (domain, xdesc, ydesc) = match &job.scene.kind {
         SceneKind::Fredholm(f) => (f.domain, "x", "B(x)"),
         _ => (
@@ -325,7 +325,7 @@ fn frame(img: &mut RgbImage, x0: u32, y0: u32, pw: u32, ph: u32) {
 
 /// Writes `text` in the lower left corner of a rendered image, white on a dark band (the
 /// scene's name on its camera view).
-pub fn caption(img: &mut RgbImage, text: &str) {
+pub(super) fn caption(img: &mut RgbImage, text: &str) {
     let (w, h) = img.dimensions();
     let size = (h as f64 / 28.0).clamp(10.0, 16.0);
     let band = (size * 1.6) as i32;
@@ -488,7 +488,7 @@ fn emptiest_corner(series: &[Series], x: [f64; 2], y: [f64; 2]) -> SeriesLabelPo
 }
 
 /// A perceptually ordered colour map (viridis, interpolated between eight anchors), t ∈ [0,1].
-pub fn viridis(t: f64) -> RGBColor {
+pub(super) fn viridis(t: f64) -> RGBColor {
     const A: [(u8, u8, u8); 8] = [
         (68, 1, 84),
         (70, 50, 127),
@@ -768,7 +768,7 @@ pub fn coefficients(c: &Coefficients) -> RgbImage {
 }
 
 /// A white image with one line of text (for an artifact that has nothing to show).
-pub fn message(w: u32, h: u32, text: &str) -> RgbImage {
+pub(super) fn message(w: u32, h: u32, text: &str) -> RgbImage {
     canvas(w, h, |root| {
         root.fill(&WHITE)?;
         root.draw(&Text::new(text, (10, h as i32 / 2), (SANS, 14).into_font()))?;

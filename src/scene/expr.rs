@@ -5,7 +5,7 @@ use exmex::{Express, FlatEx};
 
 /// A parsed expression in the variables `x` and (for kernels) `y`.
 #[derive(Clone)]
-pub struct Expr {
+pub(crate) struct Expr {
     text: String,
     /// Boxed: exmex keeps its nodes in large inline arrays.
     flat: Box<FlatEx<f64>>,
@@ -16,13 +16,13 @@ pub struct Expr {
 
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{0}")]
-pub struct ExprError(pub String);
+pub(crate) struct ExprError(pub(super) String);
 
 const FUNCTIONS: &[&str] = &["sin", "cos", "tan", "exp", "ln", "sqrt", "abs"];
 
 impl Expr {
     /// Parses `text`, allowing only the variables in `vars` (`["x"]` or `["x", "y"]`).
-    pub fn parse(text: &str, vars: &[&str]) -> Result<Expr, ExprError> {
+    pub(super) fn parse(text: &str, vars: &[&str]) -> Result<Expr, ExprError> {
         let normalized = normalize(text, vars)?;
         let flat = exmex::parse::<f64>(&normalized)
             .map_err(|e| ExprError(format!("cannot parse `{text}`: {}", e.msg())))?;
@@ -50,10 +50,6 @@ impl Expr {
         Ok(e)
     }
 
-    pub fn text(&self) -> &str {
-        &self.text
-    }
-
     fn try_eval(&self, x: f64, y: f64) -> Result<f64, ExprError> {
         let xy = [x, y];
         let vars = [xy[self.slots[0]], xy[self.slots[1]]];
@@ -64,7 +60,7 @@ impl Expr {
 
     /// The value at (x, y); NaN if the expression cannot be evaluated there.
     #[inline]
-    pub fn eval(&self, x: f64, y: f64) -> f64 {
+    pub(crate) fn eval(&self, x: f64, y: f64) -> f64 {
         self.try_eval(x, y).unwrap_or(f64::NAN)
     }
 }

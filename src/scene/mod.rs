@@ -8,9 +8,9 @@ mod repeated;
 pub mod schema;
 mod walk;
 
-pub use expr::{Expr, ExprError};
+pub(crate) use expr::Expr;
 pub use parse::{parse_document, parse_text, parse_value};
-pub use repeated::repeated_keys;
+pub(crate) use repeated::repeated_keys;
 
 use serde::Serialize;
 
@@ -81,7 +81,7 @@ impl Default for Limits {
 }
 
 /// An RGB triple: reflectance or emission per channel.
-pub type Rgb = [f64; 3];
+pub(crate) type Rgb = [f64; 3];
 
 /// A validated job document.
 #[derive(Debug, Clone, PartialEq)]
@@ -116,20 +116,20 @@ impl SceneKind {
 
 /// Optical properties shared by flatland and 3D surfaces.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Material {
-    pub reflectance: Rgb,
-    pub emission: Rgb,
+pub(crate) struct Material {
+    pub(crate) reflectance: Rgb,
+    pub(crate) emission: Rgb,
 }
 
 /// A flatland surface: p(s) = a + s(b − a), front normal (b − a) turned +90°.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Segment {
-    pub name: String,
-    pub a: [f64; 2],
-    pub b: [f64; 2],
-    pub material: Material,
+    pub(crate) name: String,
+    pub(crate) a: [f64; 2],
+    pub(crate) b: [f64; 2],
+    pub(crate) material: Material,
     /// `[s0, s1]` with 0 ≤ s0 < s1 ≤ 1; `[0, 1]` when the document has none.
-    pub emission_region: [f64; 2],
+    pub(crate) emission_region: [f64; 2],
 }
 
 /// A 3D scene: the document's surfaces, and the patches the solver works on — one per
@@ -138,7 +138,7 @@ pub struct Segment {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ThreeD {
     pub surfaces: Vec<Surface3>,
-    pub patches: Vec<Quad>,
+    pub(crate) patches: Vec<Quad>,
 }
 
 impl std::ops::Deref for ThreeD {
@@ -149,24 +149,8 @@ impl std::ops::Deref for ThreeD {
 }
 
 impl ThreeD {
-    /// A scene of parallelograms only, one patch per surface.
-    pub fn of_parallelograms(patches: Vec<Quad>) -> ThreeD {
-        ThreeD {
-            surfaces: patches
-                .iter()
-                .enumerate()
-                .map(|(i, q)| Surface3 {
-                    name: q.name.clone(),
-                    shape: Shape3::Parallelogram,
-                    patches: i..i + 1,
-                })
-                .collect(),
-            patches,
-        }
-    }
-
     /// The document surface of each patch.
-    pub fn owners(&self) -> Vec<usize> {
+    pub(crate) fn owners(&self) -> Vec<usize> {
         let mut out = vec![0; self.patches.len()];
         for (i, s) in self.surfaces.iter().enumerate() {
             out[s.patches.clone()].fill(i);
@@ -175,7 +159,7 @@ impl ThreeD {
     }
 
     /// Whether every surface is a parallelogram.
-    pub fn parallelograms_only(&self) -> bool {
+    pub(crate) fn parallelograms_only(&self) -> bool {
         self.surfaces
             .iter()
             .all(|s| matches!(s.shape, Shape3::Parallelogram))
@@ -187,7 +171,7 @@ impl ThreeD {
 pub struct Surface3 {
     pub name: String,
     pub shape: Shape3,
-    pub patches: std::ops::Range<usize>,
+    pub(crate) patches: std::ops::Range<usize>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -209,15 +193,15 @@ pub enum Shape3 {
 pub struct Quad {
     pub name: String,
     pub corners: [[f64; 3]; 4],
-    pub material: Material,
+    pub(crate) material: Material,
     /// `([s0, s1], [t0, t1])`; the whole surface when the document has none.
-    pub emission_region: ([f64; 2], [f64; 2]),
-    pub triangle: bool,
+    pub(crate) emission_region: ([f64; 2], [f64; 2]),
+    pub(crate) triangle: bool,
 }
 
 impl Quad {
     /// The patch of triangle (p0, p1, p2).
-    pub fn triangle(name: String, p: [[f64; 3]; 3], material: Material) -> Quad {
+    fn triangle(name: String, p: [[f64; 3]; 3], material: Material) -> Quad {
         let far = [0, 1, 2].map(|c| p[1][c] + p[2][c] - p[0][c]);
         Quad {
             name,
@@ -230,7 +214,7 @@ impl Quad {
 
     /// Its corners as a polygon, counter-clockwise seen from the front: four, or the triangle's
     /// three.
-    pub fn polygon(&self) -> Vec<[f64; 3]> {
+    fn polygon(&self) -> Vec<[f64; 3]> {
         if self.triangle {
             vec![self.corners[0], self.corners[1], self.corners[3]]
         } else {
@@ -242,22 +226,22 @@ impl Quad {
 /// `B(x) = E(x) + ∫_a^b K(x,y) B(y) dy`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fredholm {
-    pub domain: [f64; 2],
-    pub kernel: Expr,
-    pub source: Expr,
-    pub exact: Option<Expr>,
+    pub(crate) domain: [f64; 2],
+    pub(crate) kernel: Expr,
+    pub(crate) source: Expr,
+    pub(crate) exact: Option<Expr>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
-pub enum Method {
+pub(crate) enum Method {
     Projection,
     Hierarchical,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
-pub enum BasisKind {
+pub(crate) enum BasisKind {
     Scaling,
     Wavelet,
 }
@@ -280,23 +264,23 @@ pub enum Iteration {
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Solver {
-    pub method: Method,
-    pub basis: BasisKind,
+    pub(crate) method: Method,
+    pub(crate) basis: BasisKind,
     pub order: usize,
     pub resolution: usize,
     /// Whether the document gave `resolution`: for the hierarchical method in 3D it is then a
     /// cap on top of [`Solver::min_element_size`], else the elements are sized by that alone.
-    pub resolution_given: bool,
-    pub keep: Keep,
-    pub iteration: Iteration,
-    pub tolerance: f64,
-    pub max_iterations: usize,
+    pub(crate) resolution_given: bool,
+    pub(crate) keep: Keep,
+    pub(crate) iteration: Iteration,
+    pub(crate) tolerance: f64,
+    pub(crate) max_iterations: usize,
     /// Gauss–Legendre points per cell and dimension.
-    pub quadrature: usize,
-    pub epsilon: f64,
+    pub(crate) quadrature: usize,
+    pub(crate) epsilon: f64,
     /// The hierarchical method's smallest element edge in scene units; `None`: chosen from the
     /// scene's size ([`crate::three_d::hierarchy::sizing::Sizing`]).
-    pub min_element_size: Option<f64>,
+    pub(crate) min_element_size: Option<f64>,
 }
 
 impl Default for Solver {
@@ -319,7 +303,7 @@ impl Default for Solver {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Exposure {
+pub(crate) enum Exposure {
     Auto,
     /// The radiance that maps to white.
     White(f64),
@@ -329,7 +313,7 @@ pub enum Exposure {
 pub struct ImageSpec {
     pub width: u32,
     pub height: u32,
-    pub exposure: Exposure,
+    pub(crate) exposure: Exposure,
     /// 3d: show the elements as solved (flat at order 0) instead of smoothly interpolated.
     pub raw: bool,
     /// 3d: draw the outlines of the elements over the image.
@@ -339,13 +323,13 @@ pub struct ImageSpec {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
     pub eye: [f64; 3],
-    pub look_at: [f64; 3],
-    pub up: [f64; 3],
-    pub fov_deg: f64,
+    pub(crate) look_at: [f64; 3],
+    pub(crate) up: [f64; 3],
+    pub(crate) fov_deg: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Reference {
+pub(crate) enum Reference {
     Exact,
     Finer { order: usize, resolution: usize },
 }
@@ -355,11 +339,11 @@ pub struct Output {
     pub image: ImageSpec,
     /// `None`: framed automatically.
     pub camera: Option<Camera>,
-    pub grid: usize,
-    pub reference: Option<Reference>,
-    pub coefficients: usize,
+    pub(crate) grid: usize,
+    pub(crate) reference: Option<Reference>,
+    pub(crate) coefficients: usize,
     /// List B at the positions of `triangle` and `mesh` surfaces.
-    pub vertices: bool,
+    pub(crate) vertices: bool,
 }
 
 impl Default for Output {

@@ -16,7 +16,7 @@ pub fn parse_document(text: &str, limits: &Limits) -> Result<Job, DocumentErrors
 }
 
 /// [`parse_value`] of `value`, parsed from `text`, with the names that `text` repeats within
-/// one object ([`super::repeated_keys`]) among the errors: the value keeps only the last.
+/// one object (`super::repeated_keys`) among the errors: the value keeps only the last.
 pub fn parse_text(text: &str, value: &Value, limits: &Limits) -> Result<Job, DocumentErrors> {
     let repeated = super::repeated_keys(text);
     match parse_value(value, limits) {

@@ -16,7 +16,7 @@ const MAX_REPORTED: usize = 100;
 /// Every repeated name in the JSON `text` (each once per object, at most [`MAX_REPORTED`]),
 /// at its JSON pointer, in document order. A text that is not JSON has none (its parse
 /// reports it).
-pub fn repeated_keys(text: &str) -> Vec<FieldError> {
+pub(crate) fn repeated_keys(text: &str) -> Vec<FieldError> {
     let mut found = Vec::new();
     let mut de = serde_json::Deserializer::from_str(text);
     let walk = Walk {

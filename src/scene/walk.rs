@@ -7,21 +7,21 @@ use super::FieldError;
 use serde_json::{Map, Value};
 
 /// JSON pointer of a child: `/scene` + `surfaces` → `/scene/surfaces` (RFC 6901 escaping).
-pub fn child(path: &str, key: &str) -> String {
+pub(super) fn child(path: &str, key: &str) -> String {
     format!("{path}/{}", key.replace('~', "~0").replace('/', "~1"))
 }
 
-pub fn index(path: &str, i: usize) -> String {
+pub(super) fn index(path: &str, i: usize) -> String {
     format!("{path}/{i}")
 }
 
 #[derive(Default)]
-pub struct Walker {
-    pub errors: Vec<FieldError>,
+pub(super) struct Walker {
+    pub(super) errors: Vec<FieldError>,
 }
 
 impl Walker {
-    pub fn error(&mut self, path: impl Into<String>, message: impl Into<String>) {
+    pub(super) fn error(&mut self, path: impl Into<String>, message: impl Into<String>) {
         self.errors.push(FieldError {
             path: path.into(),
             message: message.into(),
@@ -29,7 +29,7 @@ impl Walker {
     }
 
     /// An object whose fields are all in `allowed`; every other field is an error.
-    pub fn object<'v>(
+    pub(super) fn object<'v>(
         &mut self,
         v: &'v Value,
         path: &str,
@@ -54,7 +54,7 @@ impl Walker {
     }
 
     /// A required field: an error when absent.
-    pub fn required<'v>(
+    pub(super) fn required<'v>(
         &mut self,
         map: &'v Map<String, Value>,
         path: &str,
@@ -68,7 +68,7 @@ impl Walker {
     }
 
     /// A finite number.
-    pub fn number(&mut self, v: &Value, path: &str) -> Option<f64> {
+    fn number(&mut self, v: &Value, path: &str) -> Option<f64> {
         match v.as_f64() {
             Some(x) if x.is_finite() => Some(x),
             // numbers are kept as written, so a JSON number beyond f64 (1e999) reaches here
@@ -92,7 +92,7 @@ impl Walker {
     }
 
     /// A number checked against a predicate, with `what` describing the allowed range.
-    pub fn number_in(
+    pub(super) fn number_in(
         &mut self,
         v: &Value,
         path: &str,
@@ -109,7 +109,7 @@ impl Walker {
     }
 
     /// A non-negative integer in `lo..=hi`.
-    pub fn integer(&mut self, v: &Value, path: &str, lo: u64, hi: u64) -> Option<usize> {
+    pub(super) fn integer(&mut self, v: &Value, path: &str, lo: u64, hi: u64) -> Option<usize> {
         let Some(n) = v.as_u64().or_else(|| {
             // Accept 16.0 as 16, refuse 16.5.
             v.as_f64()
@@ -132,7 +132,7 @@ impl Walker {
         usize::try_from(n).ok()
     }
 
-    pub fn boolean(&mut self, v: &Value, path: &str) -> Option<bool> {
+    pub(super) fn boolean(&mut self, v: &Value, path: &str) -> Option<bool> {
         let b = v.as_bool();
         if b.is_none() {
             self.error(
@@ -143,7 +143,7 @@ impl Walker {
         b
     }
 
-    pub fn string<'v>(&mut self, v: &'v Value, path: &str) -> Option<&'v str> {
+    pub(super) fn string<'v>(&mut self, v: &'v Value, path: &str) -> Option<&'v str> {
         let s = v.as_str();
         if s.is_none() {
             self.error(path, format!("expected a string, found {}", kind_of(v)));
@@ -152,7 +152,11 @@ impl Walker {
     }
 
     /// An array of `N` coordinates, each within ±1e12 (beyond that, squared distances overflow).
-    pub fn coordinates<const N: usize>(&mut self, v: &Value, path: &str) -> Option<[f64; N]> {
+    pub(super) fn coordinates<const N: usize>(
+        &mut self,
+        v: &Value,
+        path: &str,
+    ) -> Option<[f64; N]> {
         let c = self.numbers::<N>(v, path)?;
         for (i, x) in c.iter().enumerate() {
             if x.abs() > 1e12 {
@@ -167,7 +171,7 @@ impl Walker {
     }
 
     /// An array of exactly `n` finite numbers.
-    pub fn numbers<const N: usize>(&mut self, v: &Value, path: &str) -> Option<[f64; N]> {
+    pub(super) fn numbers<const N: usize>(&mut self, v: &Value, path: &str) -> Option<[f64; N]> {
         let arr = self.array_len(v, path, N)?;
         let mut out = [0.0; N];
         let mut ok = true;
@@ -180,7 +184,12 @@ impl Walker {
         ok.then_some(out)
     }
 
-    pub fn array_len<'v>(&mut self, v: &'v Value, path: &str, n: usize) -> Option<&'v [Value]> {
+    pub(super) fn array_len<'v>(
+        &mut self,
+        v: &'v Value,
+        path: &str,
+        n: usize,
+    ) -> Option<&'v [Value]> {
         let Some(arr) = v.as_array() else {
             self.error(
                 path,
@@ -196,7 +205,12 @@ impl Walker {
     }
 
     /// One of the given strings.
-    pub fn choice<'c>(&mut self, v: &Value, path: &str, choices: &[&'c str]) -> Option<&'c str> {
+    pub(super) fn choice<'c>(
+        &mut self,
+        v: &Value,
+        path: &str,
+        choices: &[&'c str],
+    ) -> Option<&'c str> {
         let s = self.string(v, path)?;
         let found = choices.iter().find(|c| **c == s).copied();
         if found.is_none() {

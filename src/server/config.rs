@@ -20,25 +20,25 @@ pub struct Config {
     pub max_import_bytes: usize,
     /// Most surfaces in one scene.
     #[arg(long, env = "WAVRAD_MAX_SURFACES", default_value_t = 64)]
-    pub max_surfaces: usize,
+    max_surfaces: usize,
     /// Most triangles in one scene (`triangle` and `mesh` surfaces together). A mesh's
     /// triangles are clustered, but in a cluttered scene each triangle is still linked with
     /// hundreds of its neighbours, so time and memory grow faster than this (benches/README.md).
     #[arg(long, env = "WAVRAD_MAX_TRIANGLES", default_value_t = 4096)]
-    pub max_triangles: usize,
+    max_triangles: usize,
     /// Highest polynomial order.
     #[arg(long, env = "WAVRAD_MAX_ORDER", default_value_t = 6)]
     pub max_order: usize,
     /// Most cells per segment or quad side.
     #[arg(long, env = "WAVRAD_MAX_RESOLUTION", default_value_t = 256)]
-    pub max_resolution: usize,
+    max_resolution: usize,
     /// Most unknowns of the projection system; the dense matrix is basis² × 8 bytes
     /// (at most 12 bytes × basis² at peak: 4096 → 192 MiB).
     #[arg(long, env = "WAVRAD_MAX_BASIS_FUNCTIONS", default_value_t = 4096)]
     pub max_basis_functions: usize,
     /// Most pixels of the main image (width × height).
     #[arg(long, env = "WAVRAD_MAX_IMAGE_PIXELS", default_value_t = 2048 * 2048)]
-    pub max_image_pixels: usize,
+    max_image_pixels: usize,
     /// Jobs that may wait for a worker; one more answers 429 with Retry-After.
     #[arg(long, env = "WAVRAD_QUEUE_CAPACITY", default_value_t = 64)]
     pub queue_capacity: usize,
@@ -56,7 +56,7 @@ pub struct Config {
     pub result_ttl: Duration,
     /// Where job records and results are kept (created if missing).
     #[arg(long, env = "WAVRAD_DATA_DIR", default_value = "wavrad-data")]
-    pub data_dir: PathBuf,
+    pub(super) data_dir: PathBuf,
     /// Most bytes of stored jobs (documents, statuses, results and images); beyond it the
     /// oldest finished jobs are forgotten first, never queued or running ones. 0: no limit.
     /// Bytes, or with a unit: 500MB, 2GiB.
@@ -65,7 +65,7 @@ pub struct Config {
     /// Memory the embedded store may use to cache its pages (bytes, or 64MiB…). Not used
     /// with `--database`.
     #[arg(long, env = "WAVRAD_STORE_CACHE_BYTES", default_value = "4MiB", value_parser = parse_bytes)]
-    pub store_cache_bytes: u64,
+    pub(super) store_cache_bytes: u64,
     /// HTTP requests handled at once; beyond this many, requests are answered 503 at once
     /// (the probes and /metrics are not counted).
     #[arg(long, env = "WAVRAD_MAX_CONCURRENT_REQUESTS", default_value_t = 256)]
@@ -73,27 +73,27 @@ pub struct Config {
     /// On SIGTERM, how long running solves may take to finish before they are stopped and
     /// left queued for the next start.
     #[arg(long, env = "WAVRAD_SHUTDOWN_GRACE", default_value = "10s", value_parser = parse_duration)]
-    pub shutdown_grace: Duration,
+    pub(super) shutdown_grace: Duration,
     /// Keep jobs, results and files in this PostgreSQL database (`postgres://user:password@host:port/db`)
     /// instead of `data_dir`, shared with every other process given the same database.
     #[arg(long, env = "WAVRAD_DATABASE_URL", value_parser = parse_database_url)]
-    pub database: Option<String>,
+    pub(super) database: Option<String>,
     /// Most connections to the database at once.
     #[arg(long, env = "WAVRAD_DATABASE_POOL", default_value_t = 8, value_parser = parse_pool_size)]
-    pub database_pool: usize,
+    pub(super) database_pool: usize,
     /// With a database: how long a process's claim on a job holds without being renewed; a
     /// job whose process died runs again elsewhere after this. At least four poll intervals.
     #[arg(long, env = "WAVRAD_LEASE", default_value = "10s", value_parser = parse_positive_duration)]
-    pub lease: Duration,
+    pub(super) lease: Duration,
     /// With a database: how often an idle process looks for queued jobs, leases and progress
     /// are written, and followed jobs (SSE) are read.
     #[arg(long, env = "WAVRAD_POLL_INTERVAL", default_value = "250ms", value_parser = parse_positive_duration)]
-    pub poll_interval: Duration,
+    pub(super) poll_interval: Duration,
 }
 
 impl Config {
     /// The limits a document is validated against.
-    pub fn limits(&self) -> Limits {
+    pub(super) fn limits(&self) -> Limits {
         Limits {
             max_surfaces: self.max_surfaces,
             max_triangles: self.max_triangles,
@@ -105,7 +105,7 @@ impl Config {
     }
 
     /// Worker threads: `workers`, or one per core when 0.
-    pub fn worker_threads(&self) -> usize {
+    pub(super) fn worker_threads(&self) -> usize {
         if self.workers > 0 {
             self.workers
         } else {
@@ -125,7 +125,7 @@ impl Config {
     }
 
     /// Every request is answered within this time (the synchronous render's limit plus slack).
-    pub fn request_timeout(&self) -> Duration {
+    pub(super) fn request_timeout(&self) -> Duration {
         self.sync_timeout + Duration::from_secs(5)
     }
 

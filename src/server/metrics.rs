@@ -14,23 +14,23 @@ use prometheus_client::registry::Registry;
 use std::sync::Arc;
 
 #[derive(Debug, Clone, Hash, PartialEq, Eq, EncodeLabelSet)]
-pub struct StateLabel {
-    pub state: String,
+pub(super) struct StateLabel {
+    pub(super) state: String,
 }
 
 #[derive(Debug, Clone, Hash, PartialEq, Eq, EncodeLabelSet)]
-pub struct HttpLabel {
-    pub method: String,
-    pub route: String,
-    pub status: u16,
+struct HttpLabel {
+    method: String,
+    route: String,
+    status: u16,
 }
 
-pub struct Metrics {
+pub(super) struct Metrics {
     registry: Registry,
-    pub jobs: Family<StateLabel, Gauge>,
-    pub queue_depth: Gauge,
-    pub solve_seconds: Histogram,
-    pub http: Family<HttpLabel, Counter>,
+    pub(super) jobs: Family<StateLabel, Gauge>,
+    pub(super) queue_depth: Gauge,
+    pub(super) solve_seconds: Histogram,
+    http: Family<HttpLabel, Counter>,
 }
 
 impl Default for Metrics {
@@ -72,7 +72,7 @@ impl Default for Metrics {
 
 impl Metrics {
     /// The Prometheus text exposition.
-    pub fn encode(&self) -> String {
+    pub(super) fn encode(&self) -> String {
         let mut out = String::new();
         prometheus_client::encoding::text::encode(&mut out, &self.registry)
             .expect("writing to a String cannot fail");
@@ -81,7 +81,7 @@ impl Metrics {
 }
 
 /// Middleware (a route layer, so that the matched route is known): counts every answer.
-pub async fn count_requests(
+pub(super) async fn count_requests(
     State(metrics): State<Arc<Metrics>>,
     req: Request,
     next: Next,

@@ -6,12 +6,12 @@
 //! Architecture invariant: a handler never solves — solves run on the rayon pool of
 //! [`queue::Queue`], and handlers wait on watch channels, never on threads.
 
-pub mod config;
-pub mod metrics;
+mod config;
+mod metrics;
 pub mod openapi;
-pub mod problem;
+mod problem;
 pub mod queue;
-pub mod routes;
+mod routes;
 pub mod store;
 
 use axum::error_handling::HandleErrorLayer;
@@ -36,9 +36,9 @@ use tower_http::trace::TraceLayer;
 pub struct AppState {
     pub config: Arc<Config>,
     pub queue: Queue,
-    pub metrics: Arc<Metrics>,
+    metrics: Arc<Metrics>,
     /// Cancelled when the server shuts down (ends SSE streams).
-    pub shutdown: CancellationToken,
+    shutdown: CancellationToken,
 }
 
 impl AppState {
@@ -60,7 +60,7 @@ impl AppState {
 
     /// [`AppState::start`], or with `config.database` the queue of that PostgreSQL database,
     /// connected (and its schema migrated) first. Needs a multi-threaded tokio runtime.
-    pub async fn open(
+    async fn open(
         config: Config,
         solve: SolveFn,
         shutdown: CancellationToken,
@@ -86,18 +86,6 @@ impl AppState {
             metrics,
             shutdown,
         })
-    }
-
-    /// With the real solver, [`crate::job::run`].
-    pub fn with_core(
-        config: Config,
-        shutdown: CancellationToken,
-    ) -> Result<AppState, store::StoreError> {
-        AppState::start(
-            config,
-            Arc::new(|job, progress| crate::job::run(job, progress)),
-            shutdown,
-        )
     }
 }
 

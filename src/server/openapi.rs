@@ -8,27 +8,30 @@ use utoipa::{OpenApi, ToSchema};
 
 /// The job document (`docs/job-document.md`), from the types that describe what the parser
 /// accepts.
-pub type JobDocument = crate::scene::schema::Document;
+pub(super) type JobDocument = crate::scene::schema::Document;
 
 /// A PNG image (binary).
 #[derive(ToSchema)]
 #[schema(value_type = String, format = Binary)]
-pub struct Png(pub Vec<u8>);
+#[allow(dead_code)]
+pub(super) struct Png(Vec<u8>);
 
 /// Binary glTF 2.0 (GLB).
 #[derive(ToSchema)]
 #[schema(value_type = String, format = Binary)]
-pub struct Glb(pub Vec<u8>);
+#[allow(dead_code)]
+pub(super) struct Glb(Vec<u8>);
 /// Binary content (a GLB model).
 #[derive(ToSchema)]
 #[schema(value_type = String, format = Binary)]
-pub struct Binary(pub Vec<u8>);
+#[allow(dead_code)]
+pub(super) struct Binary(Vec<u8>);
 
 /// A model uploaded as `multipart/form-data`: the model (`.obj`, `.gltf` or `.glb`, told by its
 /// file name) and the files it refers to by name (an OBJ's MTL, a glTF's `.bin` and images).
 #[derive(ToSchema)]
 #[allow(dead_code)]
-pub struct ModelUpload {
+pub(super) struct ModelUpload {
     /// The model file.
     #[schema(value_type = String, format = Binary)]
     model: Vec<u8>,
@@ -39,7 +42,7 @@ pub struct ModelUpload {
 
 /// The result of a job (`docs/job-document.md`, "What a finished job yields"): the type it is
 /// serialised from.
-pub type ResultDocument = crate::result::JobResult;
+pub(super) type ResultDocument = crate::result::JobResult;
 
 #[derive(OpenApi)]
 #[openapi(

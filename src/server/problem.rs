@@ -13,15 +13,15 @@ const PROBLEM_JSON: &str = "application/problem+json";
 
 /// One error of a document: the JSON pointer at fault and what is wrong there.
 #[derive(Debug, Clone, Serialize, ToSchema)]
-pub struct PathError {
-    pub path: String,
-    pub message: String,
+pub(super) struct PathError {
+    pub(super) path: String,
+    pub(super) message: String,
     /// For a model that cannot be imported: the file at fault (the model, its MTL, …).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub file: Option<String>,
+    pub(super) file: Option<String>,
     /// For an OBJ or MTL file: the line at fault, from 1.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub line: Option<usize>,
+    pub(super) line: Option<usize>,
 }
 
 impl From<&FieldError> for PathError {
@@ -39,23 +39,23 @@ impl From<&FieldError> for PathError {
 #[derive(Debug, Clone, Serialize, ToSchema)]
 pub struct Problem {
     #[serde(rename = "type")]
-    pub kind: String,
-    pub title: String,
-    pub status: u16,
-    pub detail: String,
+    pub(super) kind: String,
+    pub(super) title: String,
+    pub(super) status: u16,
+    detail: String,
     /// For an invalid document: every JSON path at fault.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub errors: Vec<PathError>,
+    pub(super) errors: Vec<PathError>,
     /// Seconds after which to try again (429 and 503).
     #[serde(skip)]
-    pub retry_after: Option<u32>,
+    retry_after: Option<u32>,
     /// Where the thing the problem is about goes on (a render that became a job).
     #[serde(skip)]
-    pub location: Option<Box<HeaderValue>>,
+    location: Option<Box<HeaderValue>>,
 }
 
 impl Problem {
-    pub fn new(status: StatusCode, detail: impl Into<String>) -> Problem {
+    pub(super) fn new(status: StatusCode, detail: impl Into<String>) -> Problem {
         let title = status.canonical_reason().unwrap_or("Error").to_string();
         Problem {
             kind: format!("/problems/{}", slug(&title)),
@@ -68,7 +68,7 @@ impl Problem {
         }
     }
 
-    pub fn invalid(errors: &DocumentErrors) -> Problem {
+    pub(super) fn invalid(errors: &DocumentErrors) -> Problem {
         let mut p = Problem::new(
             StatusCode::UNPROCESSABLE_ENTITY,
             format!("the job document has {} error(s)", errors.0.len()),
@@ -81,7 +81,7 @@ impl Problem {
 
     /// A model that cannot be imported (422): where, as a JSON pointer into a glTF file or a
     /// line of an OBJ or MTL file, in `errors`.
-    pub fn invalid_model(error: &crate::import::ImportError) -> Problem {
+    pub(super) fn invalid_model(error: &crate::import::ImportError) -> Problem {
         let mut p = Problem::new(StatusCode::UNPROCESSABLE_ENTITY, error.to_string());
         p.kind = "/problems/invalid-model".into();
         p.title = "Invalid model".into();
@@ -94,27 +94,27 @@ impl Problem {
         p
     }
 
-    pub fn not_found(what: &str) -> Problem {
+    pub(super) fn not_found(what: &str) -> Problem {
         Problem::new(StatusCode::NOT_FOUND, format!("no {what}"))
     }
 
-    pub fn with_type(mut self, kind: &str, title: &str) -> Problem {
+    pub(super) fn with_type(mut self, kind: &str, title: &str) -> Problem {
         self.kind = format!("/problems/{kind}");
         self.title = title.into();
         self
     }
 
-    pub fn location(mut self, uri: String) -> Problem {
+    pub(super) fn location(mut self, uri: String) -> Problem {
         self.location = HeaderValue::from_str(&uri).ok().map(Box::new);
         self
     }
 
-    pub fn retry_after(mut self, seconds: u64) -> Problem {
+    pub(super) fn retry_after(mut self, seconds: u64) -> Problem {
         self.retry_after = Some(u32::try_from(seconds).unwrap_or(u32::MAX));
         self
     }
 
-    pub fn status(&self) -> StatusCode {
+    fn status(&self) -> StatusCode {
         StatusCode::from_u16(self.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR)
     }
 }
@@ -160,7 +160,7 @@ fn is_problem(res: &axum::response::Response) -> bool {
 /// The body limit's own 413 (a request whose `Content-Length` is over the limit is refused
 /// before its handler runs, in plain text) as the handlers answer it: a problem that names the
 /// limit and how to raise it.
-pub fn body_limit(res: axum::response::Response, limit: usize) -> axum::response::Response {
+pub(super) fn body_limit(res: axum::response::Response, limit: usize) -> axum::response::Response {
     if res.status() != StatusCode::PAYLOAD_TOO_LARGE || is_problem(&res) {
         return res;
     }
@@ -173,7 +173,7 @@ pub fn body_limit(res: axum::response::Response, limit: usize) -> axum::response
 
 /// What a 413 says: the limit (`setting`, as `wavrad serve` names it with dashes), and how to
 /// raise it.
-pub fn too_large(setting: &str, limit: usize) -> String {
+pub(super) fn too_large(setting: &str, limit: usize) -> String {
     format!(
         "the body is larger than {setting} ({limit} bytes); a server started with \
          `wavrad serve --{} N` (or WAVRAD_{}) takes more",
@@ -184,7 +184,7 @@ pub fn too_large(setting: &str, limit: usize) -> String {
 
 /// Middleware: an error answer (4xx, 5xx) that is not already a problem document becomes one,
 /// keeping its status and its `Retry-After`, and its text as `detail`.
-pub async fn problem_everywhere(res: axum::response::Response) -> axum::response::Response {
+pub(super) async fn problem_everywhere(res: axum::response::Response) -> axum::response::Response {
     let status = res.status();
     if !(status.is_client_error() || status.is_server_error()) || is_problem(&res) {
         return res;

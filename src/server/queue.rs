@@ -59,7 +59,7 @@ impl JobState {
             JobState::Succeeded | JobState::Failed | JobState::Cancelled
         )
     }
-    pub fn as_str(self) -> &'static str {
+    pub(super) fn as_str(self) -> &'static str {
         match self {
             JobState::Queued => "queued",
             JobState::Running => "running",
@@ -83,17 +83,17 @@ pub struct ProgressInfo {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Links {
     #[serde(rename = "self")]
-    pub this: String,
-    pub events: String,
-    pub result: String,
-    pub image: String,
-    pub sparsity: String,
-    pub coefficients: String,
+    pub(super) this: String,
+    events: String,
+    result: String,
+    image: String,
+    sparsity: String,
+    coefficients: String,
     /// Surface name → its image.
     pub surfaces: BTreeMap<String, String>,
     /// 3d: the solved scene as binary glTF (`scene.glb`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub model: Option<String>,
+    model: Option<String>,
 }
 
 impl Links {
@@ -137,8 +137,8 @@ fn encode_segment(name: &str) -> String {
 pub struct JobFailure {
     #[serde(rename = "type")]
     pub kind: String,
-    pub title: String,
-    pub status: u16,
+    title: String,
+    status: u16,
     pub detail: String,
 }
 
@@ -152,7 +152,7 @@ impl JobFailure {
         }
     }
 
-    pub fn to_problem(&self) -> Problem {
+    pub(super) fn to_problem(&self) -> Problem {
         let mut p = Problem::new(
             StatusCode::from_u16(self.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR),
             self.detail.clone(),
@@ -170,11 +170,11 @@ pub struct JobStatus {
     pub id: String,
     pub state: JobState,
     /// The scene's name, when it has one.
-    pub scene: Option<String>,
+    scene: Option<String>,
     /// `flatland`, `3d` or `fredholm`.
-    pub kind: String,
+    pub(super) kind: String,
     /// Milliseconds since the Unix epoch.
-    pub created_ms: u64,
+    pub(super) created_ms: u64,
     pub started_ms: Option<u64>,
     pub finished_ms: Option<u64>,
     pub progress: ProgressInfo,
@@ -230,7 +230,7 @@ impl Entry {
     /// A file of the job as this process's solve wrote it to the store (with a shared
     /// database); `None` when this entry has no files: read it from the store
     /// ([`Queue::file`]).
-    pub fn written_file(&self, name: &str) -> Option<Vec<u8>> {
+    pub(super) fn written_file(&self, name: &str) -> Option<Vec<u8>> {
         let files = self.written.get()?;
         files
             .iter()
@@ -277,7 +277,7 @@ pub fn job_id(document: &Value) -> String {
     digest[..16].iter().map(|b| format!("{b:02x}")).collect()
 }
 
-pub fn now_ms() -> u64 {
+pub(super) fn now_ms() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_millis() as u64)
@@ -327,7 +327,7 @@ pub struct Queue {
 impl Queue {
     /// Opens the store under `config.data_dir`, restores its jobs (queued and running ones are
     /// queued again) and starts the dispatcher. Needs a tokio runtime.
-    pub fn start(
+    pub(super) fn start(
         config: Config,
         solve: SolveFn,
         metrics: Arc<Metrics>,
@@ -352,7 +352,7 @@ impl Queue {
 
     /// The queue of a store shared with other processes ([`shared`]): jobs are claimed from
     /// `store` under a lease, statuses read from it. Needs a multi-threaded tokio runtime.
-    pub fn start_shared(
+    pub(super) fn start_shared(
         config: Config,
         solve: SolveFn,
         metrics: Arc<Metrics>,
@@ -487,7 +487,7 @@ impl Queue {
 
     /// Makes the lazily written records durable ([`Store::sync`]): a synchronous render that
     /// answers 503 hands its job over to the client, which a crash must not lose.
-    pub fn sync(&self) -> Result<(), Problem> {
+    pub(super) fn sync(&self) -> Result<(), Problem> {
         self.inner.store.sync().map_err(internal)
     }
 
@@ -554,7 +554,7 @@ impl Queue {
     /// Jobs, newest first.
     /// A job, from whichever process solves it: [`Queue::get`], or with a shared database
     /// the job's record there, its status followed while someone subscribes.
-    pub async fn find(&self, id: &str) -> Result<Option<Arc<Entry>>, Problem> {
+    pub(super) async fn find(&self, id: &str) -> Result<Option<Arc<Entry>>, Problem> {
         if self.inner.shared.is_some() {
             return self.find_shared(id).await;
         }
@@ -562,7 +562,7 @@ impl Queue {
     }
 
     /// Jobs, newest first: [`Queue::list`], or with a shared database every process's.
-    pub async fn recent(&self, limit: usize) -> Result<Vec<JobStatus>, Problem> {
+    pub(super) async fn recent(&self, limit: usize) -> Result<Vec<JobStatus>, Problem> {
         if self.inner.shared.is_some() {
             let store = self.inner.store.clone();
             return tokio::task::spawn_blocking(move || store.list(limit))
@@ -620,7 +620,7 @@ impl Queue {
     }
 
     /// Whether new jobs are taken (not shutting down, room in the queue).
-    pub fn ready(&self) -> bool {
+    pub(super) fn ready(&self) -> bool {
         if let Some(shared) = &self.inner.shared {
             return !self.inner.draining.load(Ordering::SeqCst)
                 && shared.ready(self.inner.config.queue_capacity);
@@ -629,7 +629,7 @@ impl Queue {
     }
 
     /// Refreshes the job gauges (called when `/metrics` is read).
-    pub fn update_gauges(&self) {
+    pub(super) fn update_gauges(&self) {
         let mut counts: BTreeMap<&str, i64> = BTreeMap::new();
         for s in [
             JobState::Queued,
@@ -669,7 +669,7 @@ impl Queue {
 
     /// Stops taking jobs, lets running solves finish for up to `grace`, then stops them and
     /// leaves them queued in the store for the next start. Queued jobs stay queued.
-    pub async fn shutdown(&self, grace: Duration) {
+    pub(super) async fn shutdown(&self, grace: Duration) {
         let inner = &self.inner;
         inner.draining.store(true, Ordering::SeqCst);
         let wait_idle = |limit: Duration| async move {
@@ -942,7 +942,7 @@ fn release_memory() {
 
 /// Gives the memory a finished solve freed back to the system (nothing to do here).
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-pub fn release_memory() {}
+fn release_memory() {}
 
 /// Fixes glibc's malloc thresholds, once at start (`wavrad serve`).
 ///
@@ -968,7 +968,7 @@ pub fn tune_malloc() {
 
 /// Fixes glibc's malloc thresholds (nothing to do here).
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-pub fn tune_malloc() {}
+fn tune_malloc() {}
 
 /// The status of a job just accepted.
 fn new_status(id: &str, job: &Job) -> JobStatus {

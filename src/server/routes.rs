@@ -19,7 +19,7 @@ use sha2::{Digest, Sha256};
 use std::convert::Infallible;
 use std::sync::Arc;
 
-pub fn router(state: AppState) -> Router {
+pub(super) fn router(state: AppState) -> Router {
     let router = Router::new()
         .route("/api/v1/jobs", get(list_jobs).post(create_job))
         .route("/api/v1/jobs/{id}", get(job_status).delete(delete_job))
@@ -46,7 +46,7 @@ pub fn router(state: AppState) -> Router {
 
 /// `POST /api/v1/import`: outside the body limit of the job routes, since a model may be
 /// larger than a document; it reads at most `max_import_bytes` itself.
-pub fn import_router(state: AppState) -> Router {
+pub(super) fn import_router(state: AppState) -> Router {
     let router = Router::new().route(
         "/api/v1/import",
         axum::routing::post(import_model).layer(axum::extract::DefaultBodyLimit::disable()),
@@ -56,7 +56,7 @@ pub fn import_router(state: AppState) -> Router {
 
 /// The probes and the metrics: answered outside the request limits, so that a busy server
 /// still says it is alive.
-pub fn probes(state: AppState) -> Router {
+pub(super) fn probes(state: AppState) -> Router {
     let router = Router::new()
         .route("/healthz", get(healthz))
         .route("/readyz", get(readyz))
@@ -74,7 +74,7 @@ fn counted(router: Router<AppState>, state: &AppState) -> Router<AppState> {
 
 /// Reads and validates a job document: 415 unless the content type is JSON, 413 past
 /// `max_body_bytes`, 400 unless UTF-8 JSON, 422 with every path at fault.
-pub async fn read_document(
+async fn read_document(
     state: &AppState,
     headers: &HeaderMap,
     body: Body,
@@ -178,7 +178,7 @@ async fn submit(
         (status = 422, description = "invalid document, every path at fault", body = Problem, content_type = "application/problem+json"),
         (status = 429, description = "queue full (Retry-After)", body = Problem, content_type = "application/problem+json"),
     ))]
-pub async fn create_job(
+async fn create_job(
     State(state): State<AppState>,
     headers: HeaderMap,
     body: Body,
@@ -199,7 +199,7 @@ const MAX_LIST: u64 = 1000;
 
 #[derive(Debug, Deserialize, utoipa::IntoParams)]
 #[into_params(parameter_in = Query)]
-pub struct ListQuery {
+struct ListQuery {
     /// At most this many: a whole number from 0 to 1000, default 50. A larger number is
     /// answered with at most 1000 jobs and says so in the `Limit-Capped` and `Link` headers.
     #[param(value_type = Option<u64>, minimum = 0)]
@@ -215,7 +215,7 @@ pub struct ListQuery {
         )),
         (status = 400, description = "`limit` is not a whole number from 0 up", body = Problem, content_type = "application/problem+json"),
     ))]
-pub async fn list_jobs(
+async fn list_jobs(
     State(state): State<AppState>,
     Query(q): Query<ListQuery>,
 ) -> Result<Response, Problem> {
@@ -251,7 +251,7 @@ pub async fn list_jobs(
 /// A job's status.
 #[utoipa::path(get, path = "/api/v1/jobs/{id}", tag = "jobs", params(("id" = String, Path)),
     responses((status = 200, body = JobStatus), (status = 404, body = Problem, content_type = "application/problem+json")))]
-pub async fn job_status(
+async fn job_status(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Json<JobStatus>, Problem> {
@@ -261,7 +261,7 @@ pub async fn job_status(
 /// Cancel a job (a running solve stops within a second) and forget it.
 #[utoipa::path(delete, path = "/api/v1/jobs/{id}", tag = "jobs", params(("id" = String, Path)),
     responses((status = 204), (status = 404, body = Problem, content_type = "application/problem+json")))]
-pub async fn delete_job(
+async fn delete_job(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<StatusCode, Problem> {
@@ -282,7 +282,7 @@ pub async fn delete_job(
 #[utoipa::path(get, path = "/api/v1/jobs/{id}/events", tag = "jobs", params(("id" = String, Path)),
     responses((status = 200, description = "text/event-stream of JobStatus events", body = String, content_type = "text/event-stream"),
         (status = 404, body = Problem, content_type = "application/problem+json")))]
-pub async fn job_events(
+async fn job_events(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
@@ -358,7 +358,7 @@ async fn answer_file(state: &AppState, entry: &Entry, name: &str) -> Result<Vec<
     responses((status = 200, body = super::openapi::ResultDocument),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn job_result(
+pub(super) async fn job_result(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
@@ -374,7 +374,7 @@ pub async fn job_result(
         (status = 304, description = "If-None-Match matched the ETag"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn job_artifact(
+async fn job_artifact(
     State(state): State<AppState>,
     Path((id, artifact)): Path<(String, String)>,
     headers: HeaderMap,
@@ -400,7 +400,7 @@ pub async fn job_artifact(
         (status = 304, description = "If-None-Match matched the ETag"),
         (status = 404, description = "no such job, or not a 3d job", body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn job_model(
+async fn job_model(
     State(state): State<AppState>,
     Path(id): Path<String>,
     headers: HeaderMap,
@@ -424,7 +424,7 @@ pub async fn job_model(
         (status = 304, description = "If-None-Match matched the ETag"),
         (status = 404, body = Problem, content_type = "application/problem+json"),
         (status = 409, body = Problem, content_type = "application/problem+json")))]
-pub async fn job_surface(
+async fn job_surface(
     State(state): State<AppState>,
     Path((id, file)): Path<(String, String)>,
     headers: HeaderMap,
@@ -505,7 +505,7 @@ fn immutable(bytes: Vec<u8>, mime: &'static str, headers: &HeaderMap) -> Respons
         (status = 503, description = "would wait longer than sync_timeout (Location: the job, which goes on), the queue is full, or too many requests at once (max_concurrent_requests); Retry-After", body = Problem, content_type = "application/problem+json"),
         (status = 504, description = "the solve ran past job_timeout", body = Problem, content_type = "application/problem+json"),
     ))]
-pub async fn render_now(
+async fn render_now(
     State(state): State<AppState>,
     headers: HeaderMap,
     request: Request,
@@ -623,20 +623,20 @@ async fn wait_final(entry: &Entry, limit: std::time::Duration) -> Option<JobStat
 
 /// This API as OpenAPI 3.
 #[utoipa::path(get, path = "/api/v1/openapi.json", tag = "operations", responses((status = 200, description = "OpenAPI 3 document")))]
-pub async fn openapi() -> Json<utoipa::openapi::OpenApi> {
+async fn openapi() -> Json<utoipa::openapi::OpenApi> {
     Json(super::openapi::document())
 }
 
 /// Alive.
 #[utoipa::path(get, path = "/healthz", tag = "operations", responses((status = 200, description = "ok")))]
-pub async fn healthz() -> &'static str {
+async fn healthz() -> &'static str {
     "ok\n"
 }
 
 /// Ready to take jobs (not shutting down, room in the queue).
 #[utoipa::path(get, path = "/readyz", tag = "operations",
     responses((status = 200, description = "ready"), (status = 503, body = Problem, content_type = "application/problem+json")))]
-pub async fn readyz(State(state): State<AppState>) -> Result<&'static str, Problem> {
+async fn readyz(State(state): State<AppState>) -> Result<&'static str, Problem> {
     if state.queue.ready() && !state.shutdown.is_cancelled() {
         Ok("ready\n")
     } else {
@@ -650,7 +650,7 @@ pub async fn readyz(State(state): State<AppState>) -> Result<&'static str, Probl
 
 /// Prometheus text exposition.
 #[utoipa::path(get, path = "/metrics", tag = "operations", responses((status = 200, description = "Prometheus metrics in the OpenMetrics text format", body = String, content_type = "application/openmetrics-text; version=1.0.0; charset=utf-8")))]
-pub async fn metrics(State(state): State<AppState>) -> Response {
+async fn metrics(State(state): State<AppState>) -> Response {
     state.queue.update_gauges();
     (
         [(
@@ -665,7 +665,7 @@ pub async fn metrics(State(state): State<AppState>) -> Response {
 /// The web page.
 #[utoipa::path(get, path = "/", tag = "operations", responses((status = 200, body = String, content_type = "text/html", description = "the web page")))]
 /// The page, with this server's limits in its form.
-pub async fn index(State(state): State<AppState>) -> Html<String> {
+async fn index(State(state): State<AppState>) -> Html<String> {
     Html(
         include_str!("../../static/index.html")
             .replace("{{max_order}}", &state.config.max_order.to_string()),
@@ -925,7 +925,7 @@ fn warning_header(text: &str) -> HeaderValue {
         (status = 415, description = "not a model type or multipart/form-data", body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "a broken model: `errors` says the file and where (`line` of an OBJ or MTL, `path`: a JSON pointer into the glTF)", body = Problem, content_type = "application/problem+json"),
     ))]
-pub async fn import_model(
+async fn import_model(
     State(state): State<AppState>,
     request: Request,
 ) -> Result<Response, Problem> {

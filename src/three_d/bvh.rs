@@ -59,10 +59,10 @@ struct Lanes4([f64; W]);
 /// The closest hit of a ray.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {
-    pub surface: usize,
-    pub dist: f64,
-    pub s: f64,
-    pub t: f64,
+    pub(crate) surface: usize,
+    pub(crate) dist: f64,
+    pub(crate) s: f64,
+    pub(crate) t: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -195,7 +195,7 @@ impl Bvh {
         self.members == 0
     }
 
-    pub fn quads(&self) -> &[Parallelogram] {
+    pub(super) fn quads(&self) -> &[Parallelogram] {
         &self.quads
     }
 
@@ -367,7 +367,7 @@ impl Bvh {
 
     /// Whether `test` holds for some surface of the tree whose bounding box meets the box
     /// [lo, hi]; the walk stops at the first.
-    pub fn any_in_box(&self, lo: V3, hi: V3, mut test: impl FnMut(usize) -> bool) -> bool {
+    pub(super) fn any_in_box(&self, lo: V3, hi: V3, mut test: impl FnMut(usize) -> bool) -> bool {
         let Some(root) = self.root else {
             return false;
         };

@@ -9,7 +9,7 @@
 //! eq. (3) from the source's members, each taken as a point at its centroid, to each member
 //! of the receiver at its own centroid, every member keeping its own orientation (the
 //! oriented transfer of Sillion 1995, §4). When every member of the source faces every point
-//! of the receiver ([`Bound::before`]), the source's sum is carried by a few moments (the
+//! of the receiver (`Bound::before`), the source's sum is carried by a few moments (the
 //! irradiance's numerator is affine in the receiving point; [`crate::three_d::hierarchy`]'s
 //! `Emitter`), and the error is second order in the source's size over the distance;
 //! otherwise the source's intensity is taken toward the receiver's centre,
@@ -24,31 +24,31 @@
 //!
 //! Two clusters interact only if a point of each may be in front of a member of the other:
 //! each cluster's box, the cone of its members' normals and the range of its points along the
-//! cone's axis bound that ([`Bound::front`]). So the clusters of a planar mesh never link to
+//! cone's axis bound that (`Bound::front`). So the clusters of a planar mesh never link to
 //! one another, and those of a convex one only along their shared borders.
 
 use crate::three_d::geometry::{add, dot, norm, scale, sub, Parallelogram, V3};
 
 /// A reference to a cluster (this bit set) or to an element of the hierarchy.
-pub const CLUSTER: u32 = 1 << 31;
+pub(super) const CLUSTER: u32 = 1 << 31;
 
 /// The box, normal cone and slab of a set of surfaces: what the interaction tests need.
 #[derive(Debug, Clone, Copy)]
-pub struct Bound {
-    pub lo: V3,
-    pub hi: V3,
+pub(super) struct Bound {
+    lo: V3,
+    hi: V3,
     /// The axis of the normal cone (unit), and the cosine and sine of its half-angle; a cone
     /// of π/2 or more (cos ≤ 0) holds every direction that matters.
-    pub axis: V3,
-    pub cos: f64,
-    pub sin: f64,
+    axis: V3,
+    cos: f64,
+    sin: f64,
     /// The least and largest `axis · x` over the surfaces' points.
-    pub slab: [f64; 2],
+    slab: [f64; 2],
 }
 
 impl Bound {
     /// The bound of one flat polygon (corners, repeated corners allowed) with normal `n`.
-    pub fn of_polygon(corners: &[V3], n: V3) -> Bound {
+    pub(super) fn of_polygon(corners: &[V3], n: V3) -> Bound {
         let (mut lo, mut hi) = (corners[0], corners[0]);
         for c in corners {
             for a in 0..3 {
@@ -71,7 +71,7 @@ impl Bound {
     }
 
     /// The bound of patches `members` of `quads`, weighted by area for the cone's axis.
-    pub fn of_patches(quads: &[Parallelogram], members: &[u32]) -> Bound {
+    pub(super) fn of_patches(quads: &[Parallelogram], members: &[u32]) -> Bound {
         let mut sum = [0.0; 3];
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for &m in members {
@@ -117,12 +117,12 @@ impl Bound {
         }
     }
 
-    pub fn diameter(&self) -> f64 {
+    pub(super) fn diameter(&self) -> f64 {
         norm(sub(self.hi, self.lo))
     }
 
     /// The distance between the two boxes (0 when they meet).
-    pub fn distance(&self, other: &Bound) -> f64 {
+    pub(super) fn distance(&self, other: &Bound) -> f64 {
         let gap = |a: usize| {
             (other.lo[a] - self.hi[a])
                 .max(self.lo[a] - other.hi[a])
@@ -150,7 +150,7 @@ impl Bound {
     /// sin α (α within the cone, p ⟂ a), n_r · d ≤ max(a · d, cos θ · a · d) + sin θ |d|;
     /// a · x_s is bounded by other's slab along its own axis plus its box across it, which is
     /// exact for two parts of one plane.
-    pub fn front(&self, other: &Bound) -> bool {
+    fn front(&self, other: &Bound) -> bool {
         if self.cos <= 0.0 {
             return true;
         }
@@ -175,7 +175,7 @@ impl Bound {
     /// |d| when a · d ≥ 0. Then no member of `self` turns its back on any point of `other`,
     /// and the light `self` sends there is the affine sum of [`crate::three_d::hierarchy`]'s
     /// cluster links.
-    pub fn before(&self, other: &Bound) -> bool {
+    pub(super) fn before(&self, other: &Bound) -> bool {
         if self.cos <= 0.0 {
             return false;
         }
@@ -185,7 +185,7 @@ impl Bound {
     }
 
     /// Whether the two sets may exchange light: each may be in front of the other.
-    pub fn facing(&self, other: &Bound) -> bool {
+    pub(super) fn facing(&self, other: &Bound) -> bool {
         self.front(other) && other.front(self)
     }
 }
@@ -194,30 +194,30 @@ impl Bound {
 /// their root elements).
 #[derive(Debug, Clone)]
 pub struct Cluster {
-    pub bound: Bound,
+    pub(super) bound: Bound,
     /// Its members: `order[members.0..members.1]` of [`Clusters`].
-    pub members: (u32, u32),
-    pub children: [u32; 2],
+    members: (u32, u32),
+    pub(super) children: [u32; 2],
     /// The sum of the members' areas.
     pub area: f64,
     /// The area-weighted centroid of its members.
-    pub centre: V3,
+    pub(super) centre: V3,
     /// The largest diameter of a member.
-    pub member_diameter: f64,
+    pub(super) member_diameter: f64,
 }
 
 /// The cluster tree of a scene's patches.
 #[derive(Debug, Clone)]
 pub struct Clusters {
-    pub nodes: Vec<Cluster>,
+    pub(super) nodes: Vec<Cluster>,
     /// The patches, each cluster's members one run of them.
-    pub order: Vec<u32>,
+    order: Vec<u32>,
     /// The areas of `order` summed up to each position (one more than the patches).
     prefix: Vec<f64>,
     /// The root of each group's tree: a cluster, or the group's only patch.
-    pub roots: Vec<u32>,
+    pub(super) roots: Vec<u32>,
     /// The centroid of every patch.
-    pub centres: Vec<V3>,
+    pub(super) centres: Vec<V3>,
 }
 
 /// A member with at least this share of its cluster's diameter and of its area is a child
@@ -230,7 +230,7 @@ impl Clusters {
     /// A tree over each group of `quads` (the patches of one mesh): from the top, a member as
     /// large as half the box is split off alone, else the members are halved at the median of
     /// their centroids along the longest side of the centroids' box (O(P log P)).
-    pub fn new(quads: &[Parallelogram], groups: &[Vec<u32>]) -> Clusters {
+    pub(super) fn new(quads: &[Parallelogram], groups: &[Vec<u32>]) -> Clusters {
         let centroid = |q: &Parallelogram| {
             let c = q.outline();
             if q.tri {
@@ -327,13 +327,13 @@ impl Clusters {
         CLUSTER | me as u32
     }
 
-    pub fn get(&self, reference: u32) -> &Cluster {
+    pub(super) fn get(&self, reference: u32) -> &Cluster {
         &self.nodes[(reference & !CLUSTER) as usize]
     }
 
     /// The member of cluster `reference` at the share `u` ∈ [0, 1) of its area, in the order
     /// of its members: a member picked by area from a uniform `u`.
-    pub fn pick(&self, reference: u32, u: f64) -> usize {
+    pub(super) fn pick(&self, reference: u32, u: f64) -> usize {
         let (a, b) = self.get(reference).members;
         let (a, b) = (a as usize, b as usize);
         let target = self.prefix[a] + u * (self.prefix[b] - self.prefix[a]);
@@ -343,14 +343,14 @@ impl Clusters {
     }
 
     /// The patches of cluster `reference`.
-    pub fn members(&self, reference: u32) -> &[u32] {
+    pub(super) fn members(&self, reference: u32) -> &[u32] {
         let (a, b) = self.get(reference).members;
         &self.order[a as usize..b as usize]
     }
 }
 
 /// Whether `reference` names a cluster rather than an element.
-pub fn is_cluster(reference: u32) -> bool {
+pub(super) fn is_cluster(reference: u32) -> bool {
     reference & CLUSTER != 0
 }
 

@@ -25,10 +25,10 @@ use crate::three_d::geometry::{dot, norm, scale, sub, Parallelogram, V3};
 /// the old ŝ replaced by 1 − ŝ (`flip_s`), t̂ by 1 − t̂ (`flip_t`), then the two exchanged
 /// (`swap`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Relabel {
-    pub swap: bool,
-    pub flip_s: bool,
-    pub flip_t: bool,
+struct Relabel {
+    swap: bool,
+    flip_s: bool,
+    flip_t: bool,
 }
 
 impl Relabel {
@@ -49,7 +49,7 @@ impl Relabel {
 
     /// Which corners of a piece (in the order of [`Parallelogram::piece`]) are the origin and
     /// the ends of the first and second edge in the new labels.
-    pub fn corners(self) -> [usize; 3] {
+    fn corners(self) -> [usize; 3] {
         let origin = Relabel::ORIGIN_FLIPS
             .iter()
             .position(|&f| f == (self.flip_s, self.flip_t))
@@ -66,7 +66,7 @@ impl Relabel {
 
     /// Basis function `i = q·k + r` of the new labels (q the degree in the new t̂, r in the
     /// new ŝ) as (index, sign) of the old ones: N'_i = sign · N_index.
-    pub fn map(self, i: usize, k: usize) -> (usize, f64) {
+    fn map(self, i: usize, k: usize) -> (usize, f64) {
         let (q, r) = (i / k, i % k);
         // the flips of the new ŝ and t̂
         let (fs, ft) = if self.swap {
@@ -85,20 +85,26 @@ type Key = [i64; 18];
 
 /// A pair's class and how its labels map to the class's.
 #[derive(Debug, Clone, Copy)]
-pub struct Congruence {
-    pub key: Key,
+pub(super) struct Congruence {
+    pub(super) key: Key,
     /// The class's first piece is the pair's second.
-    pub reverse: bool,
+    reverse: bool,
     /// Relabellings of the class's first and second piece.
-    pub first: Relabel,
-    pub second: Relabel,
+    first: Relabel,
+    second: Relabel,
 }
 
 impl Congruence {
     /// The class of the pair (a, b). `directed`: only that order (for what is not symmetric
     /// in the two pieces, like the oracle's estimate); else (b, a) too, whose block is the
     /// transpose.
-    pub fn of(quads: &[Parallelogram], a: Piece, b: Piece, unit: f64, directed: bool) -> Self {
+    pub(super) fn of(
+        quads: &[Parallelogram],
+        a: Piece,
+        b: Piece,
+        unit: f64,
+        directed: bool,
+    ) -> Self {
         if quads[a.surface].tri || quads[b.surface].tri {
             return Congruence::alone(a, b);
         }
@@ -170,7 +176,8 @@ impl Congruence {
     }
 
     /// A block of this pair (row = a's function, column = b's) in the class's labels.
-    pub fn to_class(&self, block: &[f64], k: usize) -> Vec<f64> {
+    #[allow(clippy::wrong_self_convention)] // names of the direction, not conversions of `self`
+    pub(super) fn to_class(&self, block: &[f64], k: usize) -> Vec<f64> {
         let mut out = vec![0.0; block.len()];
         for (c, own, sign) in self.entries(k) {
             out[c] = sign * block[own];
@@ -179,7 +186,8 @@ impl Congruence {
     }
 
     /// The class's block in this pair's labels.
-    pub fn from_class(&self, class: &[f64], k: usize) -> Vec<f64> {
+    #[allow(clippy::wrong_self_convention)]
+    pub(super) fn from_class(&self, class: &[f64], k: usize) -> Vec<f64> {
         let mut out = vec![0.0; class.len()];
         for (c, own, sign) in self.entries(k) {
             out[own] = sign * class[c];

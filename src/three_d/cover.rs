@@ -24,7 +24,7 @@
 //!
 //! A triangle patch is masked on the same grid of its (s, t) square, of which it is the half
 //! s + t ≤ 1; its elements' Gram matrices are those of the orthonormal polynomials on
-//! triangles ([`Mask::exposure_triangle`]).
+//! triangles (`Mask::exposure_triangle`).
 
 use crate::math::basis::legendre::interval_gram;
 use crate::math::triangle::{TriangleBasis, TriangleRule};
@@ -69,14 +69,14 @@ pub enum Exposure {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Partial {
     /// G = ∫ χ φ_a φ_c.
-    pub gram: Vec<f64>,
+    pub(super) gram: Vec<f64>,
     /// G⁺, its pseudo-inverse (eigenvalues below [`CUTOFF`] of the largest left out: the
     /// polynomials that nearly vanish on a thin exposed sliver are not determined by it).
-    pub inverse: Vec<f64>,
+    pub(super) inverse: Vec<f64>,
     /// ∫_cell χ φ_a φ_c for the [`STEP`] × [`STEP`] cells of the element (index `i + STEP j`
     /// by their s and t positions): G split by those cells, for a visible fraction that is
     /// a step over them ([`crate::three_d::visibility::Seen`]).
-    pub steps: Vec<Vec<f64>>,
+    pub(super) steps: Vec<Vec<f64>>,
 }
 
 impl Partial {
@@ -86,7 +86,7 @@ impl Partial {
     }
 
     /// y = M x for one of the `k² × k²` matrices, per channel.
-    pub fn apply(m: &[f64], x: &[[f64; 3]], y: &mut [[f64; 3]]) {
+    pub(super) fn apply(m: &[f64], x: &[[f64; 3]], y: &mut [[f64; 3]]) {
         let kk = x.len();
         for (a, out) in y.iter_mut().enumerate() {
             *out = [0.0; 3];
@@ -104,7 +104,11 @@ impl Mask {
     /// side.
     ///
     /// `bvh` holds the occluders ([`Bvh::occluders`]), `all` every surface ([`Bvh::new`]).
-    pub fn of_scene(bvh: &Bvh, all: &Bvh, res: impl Fn(usize) -> usize) -> Vec<Option<Mask>> {
+    pub(super) fn of_scene(
+        bvh: &Bvh,
+        all: &Bvh,
+        res: impl Fn(usize) -> usize,
+    ) -> Vec<Option<Mask>> {
         let quads = all.quads();
         let largest = quads.iter().map(|q| q.diameter()).fold(0.0, f64::max);
         (0..quads.len())
@@ -182,7 +186,7 @@ impl Mask {
     }
 
     /// Whether the point (s, t) of the surface is covered (to the sub-cell grid).
-    pub fn covered(&self, s: f64, t: f64) -> bool {
+    pub(super) fn covered(&self, s: f64, t: f64) -> bool {
         let r = self.res as f64;
         let (fs, ft) = ((s * r).clamp(0.0, r - 1e-9), (t * r).clamp(0.0, r - 1e-9));
         let (cs, ct) = (fs as usize, ft as usize);
@@ -202,7 +206,7 @@ impl Mask {
     /// `source` vanishes there (cos θ < 0 at the source), so what `source` sends to the whole
     /// piece is what it sends to the exposed part: true for the faces of the solid that
     /// covers it, whose planes run along the outline.
-    pub fn covered_behind(
+    pub(super) fn covered_behind(
         &self,
         surface: &Parallelogram,
         s: [f64; 2],
@@ -233,7 +237,7 @@ impl Mask {
 
     /// The exposure of the piece `[s0, s1] × [t0, t1]` (aligned to the grid) for tensor
     /// Legendre polynomials of `k` terms per direction.
-    pub fn exposure(&self, s: [f64; 2], t: [f64; 2], k: usize) -> Exposure {
+    fn exposure(&self, s: [f64; 2], t: [f64; 2], k: usize) -> Exposure {
         let r = self.res as f64;
         let idx = |x: f64| (x * r).round() as usize;
         let (s0, s1, t0, t1) = (idx(s[0]), idx(s[1]), idx(t[0]), idx(t[1]));
@@ -333,7 +337,7 @@ impl Mask {
     /// triangle basis on a triangle patch (`tri`), tensor Legendre otherwise. Every element,
     /// the root included, takes its exposure from here: a triangle's measured by the tensor
     /// matrices of its (s, t) square, half of which lies outside it, came out half covered.
-    pub fn exposure_of(&self, piece: &Piece, tri: bool, k: usize) -> Exposure {
+    pub(super) fn exposure_of(&self, piece: &Piece, tri: bool, k: usize) -> Exposure {
         if tri {
             self.exposure_triangle(piece, k)
         } else {
@@ -348,7 +352,7 @@ impl Mask {
     /// a cut half is the union of halves of its sub-cells (each half of a sub-cell lies in one
     /// half of the cell). G = (1 / area(T̂)) ∫ χ φ_a φ_c, exact on every open part by a triangle
     /// rule of degree 2m, so that G = I on an open piece.
-    pub fn exposure_triangle(&self, piece: &Piece, k: usize) -> Exposure {
+    fn exposure_triangle(&self, piece: &Piece, k: usize) -> Exposure {
         let r = self.res as f64;
         let idx = |x: f64| (x * r).round() as usize;
         let (s0, t0) = (idx(piece.s[0]), idx(piece.t[0]));
@@ -462,7 +466,7 @@ fn pseudo_inverse(g: &[f64], n: usize) -> Vec<f64> {
 ///
 /// `all` holds every surface of the scene ([`Bvh::new`]); only those whose box meets i's are
 /// looked at (such an edge's midpoint is in i).
-pub fn contacts(all: &Bvh, i: usize) -> Vec<[[f64; 2]; 2]> {
+pub(super) fn contacts(all: &Bvh, i: usize) -> Vec<[[f64; 2]; 2]> {
     let quads = all.quads();
     let q = &quads[i];
     let tol = 1e-9 * q.diameter();
@@ -558,7 +562,7 @@ const LID_GAP: f64 = 0.02;
 /// Whether the segment `line` of (s, t) meets the closed piece `[s0, s1] × [t0, t1]`
 /// (Liang–Barsky clipping), widened by [`MEET_SLACK`]: a line along the border of two pieces,
 /// whose ends are rounded, touches both.
-pub fn meets(line: &[[f64; 2]; 2], s: [f64; 2], t: [f64; 2]) -> bool {
+pub(super) fn meets(line: &[[f64; 2]; 2], s: [f64; 2], t: [f64; 2]) -> bool {
     let [a, b] = *line;
     let d = [b[0] - a[0], b[1] - a[1]];
     let (mut lo, mut hi) = (0.0_f64, 1.0_f64);

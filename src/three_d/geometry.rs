@@ -3,26 +3,26 @@
 //! and the distances between pieces of them that the integrators and the visibility tests need.
 //! The r and cos θ of the kernel, the slides' eq. (3), are measured with these.
 
-pub type V3 = [f64; 3];
+pub(crate) type V3 = [f64; 3];
 
 #[inline(always)]
-pub fn sub(a: V3, b: V3) -> V3 {
+pub(crate) fn sub(a: V3, b: V3) -> V3 {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 #[inline(always)]
-pub fn add(a: V3, b: V3) -> V3 {
+pub(crate) fn add(a: V3, b: V3) -> V3 {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 #[inline(always)]
-pub fn scale(a: V3, s: f64) -> V3 {
+pub(crate) fn scale(a: V3, s: f64) -> V3 {
     [a[0] * s, a[1] * s, a[2] * s]
 }
 #[inline(always)]
-pub fn dot(a: V3, b: V3) -> f64 {
+pub(crate) fn dot(a: V3, b: V3) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 #[inline(always)]
-pub fn cross(a: V3, b: V3) -> V3 {
+pub(crate) fn cross(a: V3, b: V3) -> V3 {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
@@ -30,10 +30,10 @@ pub fn cross(a: V3, b: V3) -> V3 {
     ]
 }
 #[inline(always)]
-pub fn norm(a: V3) -> f64 {
+pub(crate) fn norm(a: V3) -> f64 {
     dot(a, a).sqrt()
 }
-pub fn normalize(a: V3) -> V3 {
+pub(crate) fn normalize(a: V3) -> V3 {
     scale(a, 1.0 / norm(a))
 }
 
@@ -41,20 +41,20 @@ pub fn normalize(a: V3) -> V3 {
 /// or, with `tri`, the triangle s + t ≤ 1 of the same map (a patch of a triangle or a mesh).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Parallelogram {
-    pub p0: V3,
-    pub e1: V3,
-    pub e3: V3,
+    pub(super) p0: V3,
+    pub(crate) e1: V3,
+    pub(crate) e3: V3,
     /// Unit front normal.
-    pub n: V3,
+    pub(crate) n: V3,
     /// The area of the surface: the parallelogram's, or the triangle's.
-    pub area: f64,
+    pub(crate) area: f64,
     /// |e1 × e3|, the area of the parameter square's image: dA = jac ds dt. Twice `area` on a
     /// triangle.
-    pub jac: f64,
+    pub(super) jac: f64,
     pub tri: bool,
     /// s = (p − p0)·u, t = (p − p0)·v for p in the plane.
-    pub u: V3,
-    pub v: V3,
+    pub(super) u: V3,
+    pub(super) v: V3,
 }
 
 impl Parallelogram {
@@ -84,7 +84,7 @@ impl Parallelogram {
     }
 
     /// The patch of a scene: a parallelogram, or the triangle (p0, p1, p3) of its corners.
-    pub fn of(q: &crate::scene::Quad) -> Parallelogram {
+    pub(crate) fn of(q: &crate::scene::Quad) -> Parallelogram {
         let mut p = Parallelogram::new(&q.corners);
         if q.triangle {
             p.tri = true;
@@ -94,7 +94,7 @@ impl Parallelogram {
     }
 
     /// The corners of the whole surface, counter-clockwise; a triangle's third repeated.
-    pub fn outline(&self) -> [V3; 4] {
+    pub(crate) fn outline(&self) -> [V3; 4] {
         let c = self.piece([0.0, 1.0], [0.0, 1.0]);
         if self.tri {
             [c[0], c[1], c[3], c[3]]
@@ -114,19 +114,19 @@ impl Parallelogram {
 
     /// (s, t) of the projection of p onto the plane.
     #[inline(always)]
-    pub fn params(&self, p: V3) -> (f64, f64) {
+    pub(super) fn params(&self, p: V3) -> (f64, f64) {
         let d = sub(p, self.p0);
         (dot(d, self.u), dot(d, self.v))
     }
 
     /// Signed distance of p from the plane, positive in front.
     #[inline(always)]
-    pub fn side(&self, p: V3) -> f64 {
+    pub(super) fn side(&self, p: V3) -> f64 {
         dot(sub(p, self.p0), self.n)
     }
 
     /// The corners of the piece `[s0,s1] × [t0,t1]`, counter-clockwise.
-    pub fn piece(&self, s: [f64; 2], t: [f64; 2]) -> [V3; 4] {
+    pub(super) fn piece(&self, s: [f64; 2], t: [f64; 2]) -> [V3; 4] {
         [
             self.at(s[0], t[0]),
             self.at(s[1], t[0]),
@@ -136,7 +136,7 @@ impl Parallelogram {
     }
 
     /// Length of the longer diagonal of the whole parallelogram; a triangle's longest side.
-    pub fn diameter(&self) -> f64 {
+    pub(super) fn diameter(&self) -> f64 {
         if self.tri {
             return norm(self.e1)
                 .max(norm(self.e3))
@@ -204,7 +204,7 @@ fn segment_segment(p1: V3, q1: V3, p2: V3, q2: V3) -> f64 {
 }
 
 /// Distance from p to the convex planar quadrilateral `q` (corners in order, normal `n`).
-pub fn point_quad(p: V3, q: &[V3; 4], n: V3) -> f64 {
+pub(super) fn point_quad(p: V3, q: &[V3; 4], n: V3) -> f64 {
     let mut inside = true;
     for i in 0..4 {
         let e = sub(q[(i + 1) % 4], q[i]);
@@ -233,7 +233,7 @@ fn segment_crosses(a: V3, b: V3, q: &[V3; 4], n: V3) -> bool {
 }
 
 /// Distance between two convex planar quadrilaterals (0 when they meet).
-pub fn quad_quad(a: &[V3; 4], na: V3, b: &[V3; 4], nb: V3) -> f64 {
+pub(super) fn quad_quad(a: &[V3; 4], na: V3, b: &[V3; 4], nb: V3) -> f64 {
     let mut d = f64::INFINITY;
     for i in 0..4 {
         let (a0, a1) = (a[i], a[(i + 1) % 4]);
@@ -253,17 +253,17 @@ pub fn quad_quad(a: &[V3; 4], na: V3, b: &[V3; 4], nb: V3) -> f64 {
 /// those of the four-way midpoint split, squares in (s, t)) it is half of that square: the
 /// lower-left half (s − s0) + (t − t0) ≤ h, or with `upper` the upper-right half
 /// (s1 − s) + (t1 − t) ≤ h, h = s1 − s0. Either is the image of the reference triangle of
-/// [`crate::math::triangle`] under its local coordinates [`Piece::local`].
+/// [`crate::math::triangle`] under its local coordinates `Piece::local`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Piece {
-    pub surface: usize,
-    pub s: [f64; 2],
-    pub t: [f64; 2],
-    pub upper: bool,
+    pub(super) surface: usize,
+    pub(super) s: [f64; 2],
+    pub(super) t: [f64; 2],
+    pub(super) upper: bool,
 }
 
 impl Piece {
-    pub fn whole(surface: usize) -> Piece {
+    pub(super) fn whole(surface: usize) -> Piece {
         Piece {
             surface,
             s: [0.0, 1.0],
@@ -273,7 +273,7 @@ impl Piece {
     }
 
     /// Its corners, counter-clockwise; a triangle's three with the last repeated.
-    pub fn corners(&self, quads: &[Parallelogram]) -> [V3; 4] {
+    pub(super) fn corners(&self, quads: &[Parallelogram]) -> [V3; 4] {
         let q = &quads[self.surface];
         if !q.tri {
             return q.piece(self.s, self.t);
@@ -284,7 +284,7 @@ impl Piece {
     }
 
     /// The (s, t) of a triangle piece's vertices, in the order of the reference triangle's.
-    pub fn triangle(&self) -> [[f64; 2]; 3] {
+    pub(super) fn triangle(&self) -> [[f64; 2]; 3] {
         let (s, t) = (self.s, self.t);
         if self.upper {
             [[s[1], t[1]], [s[0], t[1]], [s[1], t[0]]]
@@ -296,13 +296,13 @@ impl Piece {
     /// The local coordinates of (s, t) in a triangle piece: (0, 0) at its first vertex, the
     /// reference triangle's (ŝ, t̂).
     #[inline(always)]
-    pub fn local(&self, s: f64, t: f64) -> (f64, f64) {
+    pub(super) fn local(&self, s: f64, t: f64) -> (f64, f64) {
         crate::math::triangle::local_in_half(self.s, self.t, self.upper, s, t)
     }
 
     /// (s, t) of the local coordinates (ŝ, t̂) of a triangle piece.
     #[inline(always)]
-    pub fn at_local(&self, u: f64, v: f64) -> (f64, f64) {
+    pub(super) fn at_local(&self, u: f64, v: f64) -> (f64, f64) {
         let h = self.s[1] - self.s[0];
         if self.upper {
             (self.s[1] - u * h, self.t[1] - v * h)
@@ -314,7 +314,7 @@ impl Piece {
     /// Child `c` of the four-way midpoint split of a triangle piece, numbered as
     /// [`crate::math::triangle::CHILDREN`]: the corner children keep the orientation, the
     /// centre one (3) is turned by half a turn.
-    pub fn tri_child(&self, c: usize) -> Piece {
+    pub(super) fn tri_child(&self, c: usize) -> Piece {
         let (ms, mt) = (0.5 * (self.s[0] + self.s[1]), 0.5 * (self.t[0] + self.t[1]));
         let lo_s = [self.s[0], ms];
         let hi_s = [ms, self.s[1]];

@@ -1,17 +1,17 @@
 //! 3D scenes: the radiosity equation on parallelograms with the kernel of the slides' eq. (3).
 //! [`geometry`] parametrises the surfaces and their pieces, [`bvh`] and [`visibility`] give the
 //! visibility term, [`cover`] the part of a surface that a solid stands on, [`transfer`]
-//! integrates the Galerkin block between two pieces, [`congruence`] shares it between equal
+//! integrates the Galerkin block between two pieces, `congruence` shares it between equal
 //! pairs, [`projection`] assembles the projection method's matrix and [`hierarchy`] solves by
 //! hierarchical wavelet radiosity.
 
 pub mod bvh;
 pub mod cluster;
-pub mod congruence;
+mod congruence;
 pub mod cover;
 pub mod geometry;
 pub mod hierarchy;
 pub mod projection;
-pub mod steps;
+mod steps;
 pub mod transfer;
 pub mod visibility;

@@ -21,19 +21,19 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Rays per side of the stratified visibility grid of a partly occluded cell pair.
-pub const VISIBILITY_GRID: usize = 4;
+pub(super) const VISIBILITY_GRID: usize = 4;
 
 /// The geometry of a 3D scene with the facts about pairs of surfaces that every method needs.
 /// Nothing here is a table over pairs of surfaces: a scene of 10⁵ triangles has 10¹⁰ pairs,
 /// of which the solver looks at a few per element.
 pub struct Geometry {
-    pub quads: Vec<Parallelogram>,
+    pub(super) quads: Vec<Parallelogram>,
     /// The surfaces that may occlude a ray between two others ([`Bvh::occluders`]).
-    pub bvh: Bvh,
+    pub(super) bvh: Bvh,
 }
 
 impl Geometry {
-    pub fn new(quads: &[Quad]) -> Geometry {
+    pub(crate) fn new(quads: &[Quad]) -> Geometry {
         let quads: Vec<Parallelogram> = quads.iter().map(Parallelogram::of).collect();
         Geometry {
             bvh: Bvh::occluders(&quads),
@@ -41,22 +41,18 @@ impl Geometry {
         }
     }
 
-    pub fn len(&self) -> usize {
+    fn len(&self) -> usize {
         self.quads.len()
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.quads.is_empty()
-    }
-
     /// Whether some point of each of surfaces `i` and `j` is in front of the other.
-    pub fn facing(&self, i: usize, j: usize) -> bool {
+    pub(super) fn facing(&self, i: usize, j: usize) -> bool {
         let (a, b) = (&self.quads[i], &self.quads[j]);
         i != j && in_front(a, b) && in_front(b, a)
     }
 
     /// Surface pairs (i < j) whose closed parallelograms meet.
-    pub fn touching(&self) -> Vec<(usize, usize)> {
+    pub(crate) fn touching(&self) -> Vec<(usize, usize)> {
         let n = self.len();
         let mut out = Vec::new();
         for i in 0..n {
@@ -74,7 +70,14 @@ impl Geometry {
 
     /// The visible fraction of the pair of pieces, 1 without rays when nothing can come
     /// between them; rays cast are added to `rays`.
-    pub fn visibility(&self, a: Piece, b: Piece, seed: u64, grid: usize, rays: &mut u64) -> Seen {
+    pub(super) fn visibility(
+        &self,
+        a: Piece,
+        b: Piece,
+        seed: u64,
+        grid: usize,
+        rays: &mut u64,
+    ) -> Seen {
         self.visibility_over(a, None, b, seed, grid, rays)
     }
 
@@ -82,7 +85,7 @@ impl Geometry {
     /// surface of the occluders' tree in the box of the two pieces meets the hull of the
     /// pieces by the quick test and that of their whole surfaces by the thorough one
     /// ([`visibility::may_occlude`]).
-    pub fn unoccluded(&self, a: Piece, b: Piece) -> bool {
+    pub(super) fn unoccluded(&self, a: Piece, b: Piece) -> bool {
         !visibility::any_occluder(&self.quads, &self.bvh, a, b)
     }
 
@@ -111,7 +114,7 @@ fn in_front(a: &Parallelogram, b: &Parallelogram) -> bool {
 }
 
 /// The accuracy of the projection method's cell pairs at `q` Gauss points per direction.
-pub fn accuracy(q: usize) -> Accuracy {
+fn accuracy(q: usize) -> Accuracy {
     Accuracy {
         q_min: q,
         digits: 6.0,
@@ -155,7 +158,7 @@ pub fn build(
 }
 
 /// E_{cell,(q,p)} = E √A / h ∫∫_{cell ∩ region} φ_p(ŝ) φ_q(t̂) ds dt, exactly.
-pub fn emission_coefficients(q: &Quad, area: f64, disc: Discretization) -> Vec<[f64; 3]> {
+fn emission_coefficients(q: &Quad, area: f64, disc: Discretization) -> Vec<[f64; 3]> {
     let k = disc.order + 1;
     let n = disc.cells;
     let mut out = vec![[0.0; 3]; n * n * k * k];
@@ -175,7 +178,7 @@ pub fn emission_coefficients(q: &Quad, area: f64, disc: Discretization) -> Vec<[
 }
 
 /// E ∫_{piece ∩ region} N_(q,p) dA for N orthonormal in the piece's area, exactly.
-pub fn piece_emission(q: &Quad, area: f64, piece: Piece, k: usize, out: &mut [[f64; 3]]) {
+pub(super) fn piece_emission(q: &Quad, area: f64, piece: Piece, k: usize, out: &mut [[f64; 3]]) {
     if q.triangle {
         // E is constant on a triangle (no emission region): ∫ E N_0 dA = E √A_piece, and the
         // other functions are orthogonal to the constant
@@ -212,7 +215,7 @@ pub fn piece_emission(q: &Quad, area: f64, piece: Piece, k: usize, out: &mut [[f
 
 /// The ρ-free Galerkin matrix, rows of cells in parallel; also the visibility rays cast and
 /// the kernel evaluations.
-pub fn matrix(
+fn matrix(
     geo: &Geometry,
     disc: Discretization,
     acc: Accuracy,
@@ -298,7 +301,7 @@ pub fn matrix(
 /// K is symmetric and so is V, so each unordered pair is integrated once and entered twice;
 /// congruent pairs of pieces ([`crate::three_d::congruence`]: most of them on parallel or perpendicular
 /// walls) share one integral of K², and only the visible fraction is per pair.
-pub fn kernel_squares(
+pub(crate) fn kernel_squares(
     geo: &Geometry,
     cells: usize,
     q: usize,

@@ -3,21 +3,21 @@
 //! tensor Legendre basis on each cell, by which a block is weighted with such a step.
 
 /// Cells per side of the receiver over which a link's visible fraction is a step.
-pub const STEP: usize = 4;
-pub const CELLS: usize = STEP * STEP;
+pub(super) const STEP: usize = 4;
+pub(super) const CELLS: usize = STEP * STEP;
 
 /// M_cell[a][c] = ∫_cell φ_a φ_c over the unit square, for the tensor products
 /// φ_a = φ_p(ŝ) φ_q(t̂) (`a = q k + p`) of the orthonormal shifted Legendre polynomials of
 /// [`crate::math::basis::legendre`]: the Gram matrices of the basis on the [`STEP`] × [`STEP`]
 /// cells (they sum to the identity).
 #[derive(Debug, Clone)]
-pub struct Steps {
-    pub k: usize,
-    pub m: Vec<Vec<f64>>,
+pub(super) struct Steps {
+    pub(super) k: usize,
+    pub(super) m: Vec<Vec<f64>>,
 }
 
 impl Steps {
-    pub fn new(k: usize) -> Steps {
+    pub(super) fn new(k: usize) -> Steps {
         // ∫ φ_p φ_q over each [i / STEP, (i + 1) / STEP]
         let strips: Vec<Vec<f64>> = (0..STEP)
             .map(|i| {

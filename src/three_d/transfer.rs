@@ -4,7 +4,7 @@
 //! order m on each piece, orthonormal in area: N = φ_p(ŝ) φ_q(t̂) / √A.
 //!
 //! Far pairs (distance ≥ the larger diameter) take a tensor Gauss rule whose order follows the
-//! separation ([`points`]). Near pairs (shared edges of a room, a box standing on the floor) are
+//! separation (`points`). Near pairs (shared edges of a room, a box standing on the floor) are
 //! integrated as an outer rule over `a`, split adaptively toward `b` along the axis over which
 //! the distance changes (strips toward a shared edge), and an inner integral over `b` for each
 //! outer point, split as a quadtree around the point. Both recursions stop at a depth limit,
@@ -19,20 +19,20 @@ use crate::three_d::geometry::{
 };
 
 /// Largest k = m + 1 (the document allows m ≤ 8) and Gauss rule handled on the stack.
-pub const MAX_K: usize = 9;
+pub(super) const MAX_K: usize = 9;
 const MAX_Q: usize = 16;
 
 /// How hard to work.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Accuracy {
     /// Fewest Gauss points per direction.
-    pub q_min: usize,
+    pub(super) q_min: usize,
     /// Decimal digits the far-field rules aim at.
-    pub digits: f64,
+    pub(super) digits: f64,
     /// Deepest split of the outer piece toward a near target, and of the inner piece around a
     /// point.
-    pub outer_depth: u32,
-    pub inner_depth: u32,
+    pub(super) outer_depth: u32,
+    pub(super) inner_depth: u32,
 }
 
 impl Accuracy {
@@ -48,7 +48,7 @@ impl Accuracy {
     /// A few digits (the links of the hierarchical method, which an oracle already bounds:
     /// 1e-4 of a link is far below the tolerance of the oracle; six digits cost a third more
     /// and moved no cell mean of the Cornell box by 1e-4).
-    pub fn coarse(q_min: usize) -> Accuracy {
+    pub(super) fn coarse(q_min: usize) -> Accuracy {
         Accuracy {
             q_min,
             digits: 4.0,
@@ -60,7 +60,7 @@ impl Accuracy {
 
 /// Gauss points per direction for a pair at distance `dist` of size `size`: the error of a
 /// q-point rule decays like ρ^(−2q), ρ the Bernstein ellipse parameter of the separation.
-pub fn points(dist: f64, size: f64, digits: f64) -> usize {
+fn points(dist: f64, size: f64, digits: f64) -> usize {
     let a = 1.0 + 2.0 * dist / size.max(1e-300);
     let rho = a + (a * a - 1.0).max(0.0).sqrt();
     (digits * std::f64::consts::LN_10 / (2.0 * rho.ln()))
@@ -70,7 +70,7 @@ pub fn points(dist: f64, size: f64, digits: f64) -> usize {
 
 /// What to integrate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Integrand {
+pub(super) enum Integrand {
     /// K N_i N_j, a k² × k² block (row = a's `q·k + p`, column = b's).
     Galerkin { k: usize },
     /// K², one number (the denominator of eq. (5)), over the pieces' areas.
@@ -80,7 +80,7 @@ pub enum Integrand {
 /// Adds the transfer from `b` to `a` to `out` (k² × k² for Galerkin, 1 for Squared).
 /// Returns the number of kernel evaluations (a closed-form point-to-polygon form factor
 /// counts as one).
-pub fn block(
+pub(super) fn block(
     quads: &[Parallelogram],
     a: Piece,
     b: Piece,
@@ -273,7 +273,7 @@ fn corners(q: &Parallelogram, r: Rect) -> [V3; 4] {
 
 /// The longer diagonal of a parallelogram given by its corners; the longest side of a
 /// triangle (its third corner repeated).
-pub fn diameter(c: &[V3; 4]) -> f64 {
+pub(super) fn diameter(c: &[V3; 4]) -> f64 {
     if c[2] == c[3] {
         return norm(sub(c[1], c[0]))
             .max(norm(sub(c[2], c[0])))
@@ -569,7 +569,7 @@ impl Ctx<'_> {
 /// front normals nx, ny; zero unless y is in front of x and x in front of y. Without a branch
 /// (the cosines clamped at zero), so that the loops over sample points vectorise.
 #[inline(always)]
-pub fn kernel(x: V3, nx: V3, y: V3, ny: V3) -> f64 {
+fn kernel(x: V3, nx: V3, y: V3, ny: V3) -> f64 {
     let r = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
     let cx = (r[0] * nx[0] + r[1] * nx[1] + r[2] * nx[2]).max(0.0);
     let cy = (-(r[0] * ny[0] + r[1] * ny[1] + r[2] * ny[2])).max(0.0);
@@ -581,7 +581,7 @@ pub fn kernel(x: V3, nx: V3, y: V3, ny: V3) -> f64 {
 /// (Lambert 1760; Baum, Rushmeier and Winget 1989, eq. (3)): (1/2π) Σ γ_i n·(R_i × R_i+1)/|…|,
 /// R_i the vectors to the vertices and γ_i the angles between them. The polygon is first clipped
 /// to the half-space in front of x.
-pub fn point_polygon(x: V3, n: V3, poly: &[V3; 4]) -> f64 {
+pub(super) fn point_polygon(x: V3, n: V3, poly: &[V3; 4]) -> f64 {
     let mut clipped: smallvec::SmallVec<[V3; 8]> = smallvec::SmallVec::new();
     for i in 0..4 {
         let (a, b) = (sub(poly[i], x), sub(poly[(i + 1) % 4], x));
@@ -635,7 +635,7 @@ mod tests {
     }
 
     /// Howell's C-11: directly opposed parallel rectangles a × b at distance c.
-    pub fn parallel_opposed(a: f64, b: f64, c: f64) -> f64 {
+    fn parallel_opposed(a: f64, b: f64, c: f64) -> f64 {
         let (x, y) = (a / c, b / c);
         let (x1, y1) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
         2.0 / (PI * x * y)
@@ -650,7 +650,7 @@ mod tests {
 
     /// Howell's C-14: perpendicular rectangles with a common edge of length l, widths w (the
     /// emitter) and h: F from the w × l rectangle to the h × l one.
-    pub fn perpendicular_common_edge(w: f64, h: f64, l: f64) -> f64 {
+    fn perpendicular_common_edge(w: f64, h: f64, l: f64) -> f64 {
         let (hh, ww) = (h / l, w / l);
         let a = (1.0 + hh * hh) * (1.0 + ww * ww) / (1.0 + hh * hh + ww * ww);
         let b = ww * ww * (1.0 + hh * hh + ww * ww) / ((1.0 + ww * ww) * (hh * hh + ww * ww));

@@ -26,7 +26,7 @@ use crate::three_d::steps::{Steps, CELLS, STEP};
 /// normal, the coordinate axes, the normals of the two pieces and the cross products of their
 /// edges with `q`'s. The per-element test runs for every link, where a dozen rays cost less
 /// than the ~100 axes of the thorough test; the per-surface test runs once.
-pub fn may_occlude(points: &[V3; 8], thorough: bool, q: &Parallelogram) -> bool {
+fn may_occlude(points: &[V3; 8], thorough: bool, q: &Parallelogram) -> bool {
     let qc = q.outline();
     // the tolerance's scale: q's size plus the points' bounding box
     let (mut lo, mut hi) = (points[0], points[0]);
@@ -114,7 +114,7 @@ fn corners_of_pair(quads: &[Parallelogram], a: Piece, b: Piece) -> [V3; 8] {
 /// pieces `a` and `b`: the quick test of [`may_occlude`] on the pieces' hull for the surfaces
 /// in its bounding box, then the thorough one on their whole surfaces' hull, stopping at the
 /// first that passes both.
-pub fn any_occluder(quads: &[Parallelogram], bvh: &Bvh, a: Piece, b: Piece) -> bool {
+pub(super) fn any_occluder(quads: &[Parallelogram], bvh: &Bvh, a: Piece, b: Piece) -> bool {
     let pts = corners_of_pair(quads, a, b);
     let whole = corners_of_pair(quads, Piece::whole(a.surface), Piece::whole(b.surface));
     let (mut lo, mut hi) = (pts[0], pts[0]);
@@ -168,7 +168,7 @@ impl SplitMix {
 /// the one-sided 95 % bound on a fraction of which none of n samples hit (the "rule of three":
 /// (1 − V)ⁿ ≤ 0.05 for V ≥ 3/n). The oracles take it as the share of the pair's transfer that
 /// a hidden pair may be missing (through a gap the rays did not find), not the whole of it.
-pub fn unseen_bound(rays: u64) -> f64 {
+pub(super) fn unseen_bound(rays: u64) -> f64 {
     if rays == 0 {
         1.0
     } else {
@@ -177,7 +177,7 @@ pub fn unseen_bound(rays: u64) -> f64 {
 }
 
 /// A seed from two element identities (order matters: the pair is directed).
-pub fn pair_seed(a: u64, b: u64) -> u64 {
+pub(super) fn pair_seed(a: u64, b: u64) -> u64 {
     let mut r = SplitMix(a.wrapping_mul(0x100_0000_01B3) ^ b.rotate_left(32));
     r.next_u64()
 }
@@ -189,7 +189,7 @@ fn quarter_of(c: usize) -> usize {
 }
 
 /// What the rays between two pieces saw: the visible fraction of the whole transfer, and of
-/// the part of it that arrives on each of the [`STEP`] × [`STEP`] cells of the receiver `a`
+/// the part of it that arrives on each of the `STEP` × `STEP` cells of the receiver `a`
 /// (index `i + STEP j` by its s and t positions).
 ///
 /// A shadow edge crosses a receiver as a step; one fraction for the whole link spreads it
@@ -198,13 +198,13 @@ fn quarter_of(c: usize) -> usize {
 /// value per quarter of the receiver, with enough (four per cell) one per cell.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Seen {
-    pub whole: f64,
-    pub cells: [f64; CELLS],
+    pub(super) whole: f64,
+    cells: [f64; CELLS],
 }
 
 impl Seen {
     /// Nothing in between.
-    pub const CLEAR: Seen = Seen {
+    pub(super) const CLEAR: Seen = Seen {
         whole: 1.0,
         cells: [1.0; CELLS],
     };
@@ -226,7 +226,7 @@ impl Seen {
     /// At order 0 (k = 1) a receiver holds one constant, which the step cannot change: W
     /// would be the plain mean of the cells, and the whole fraction, weighted by the
     /// kernel, is the better estimate of the same number.
-    pub fn weigh(&self, steps: &Steps, block: &mut [f64]) {
+    pub(super) fn weigh(&self, steps: &Steps, block: &mut [f64]) {
         if steps.k == 1 || self.cells.iter().all(|&v| v == self.whole) {
             block.iter_mut().for_each(|x| *x *= self.whole);
             return;
@@ -238,7 +238,7 @@ impl Seen {
     /// masked Gram matrices of its step cells ([`Partial`]), which turns the block into the
     /// moments ∫ χ φ_a H of the exposed part. The fractions are those of the exposed part
     /// ([`visible_fraction_over`]); uniform ones make W = V G.
-    pub fn weigh_masked(&self, partial: &Partial, k: usize, block: &mut [f64]) {
+    pub(super) fn weigh_masked(&self, partial: &Partial, k: usize, block: &mut [f64]) {
         if k == 1 || self.cells.iter().all(|&v| v == self.whole) {
             let kk = k * k;
             let w: Vec<f64> = partial.gram.iter().map(|g| self.whole * g).collect();
@@ -287,7 +287,7 @@ fn extend(known: &[Option<f64>; 4], q: usize, whole: f64) -> f64 {
 /// The visible fraction of the transfer between `a` and `b`: over a stratified `n × n` set of
 /// point pairs, Σ w V / Σ w with w the point-to-disc kernel cosθa cosθb / (π r² + A) (A the
 /// smaller piece's area, which keeps the weight finite for touching pieces), and the same over
-/// the pairs whose point on `a` lies in each quarter of `a` or, for `n` ≥ 2 [`STEP`], in each
+/// the pairs whose point on `a` lies in each quarter of `a` or, for `n` ≥ 2 `STEP`, in each
 /// step cell of `a` ([`Seen`]; a quarter no pair reached is extended from the others, a
 /// cell takes its quarter's). Pairs that do not face each other carry no weight and cast no ray:
 /// counting them would make a block's back-facing part, which a ray through the block itself
@@ -324,7 +324,7 @@ fn at(q: &Parallelogram, p: &Piece, u: f64, v: f64) -> (f64, f64) {
 
 /// [`visible_fraction`] over the pairs whose point on `a` is not `covered`: the fraction of
 /// the light that reaches the exposed part of `a` ([`crate::three_d::cover`]).
-pub fn visible_fraction_over(
+pub(super) fn visible_fraction_over(
     bvh: &Bvh,
     a: Piece,
     covered: Option<&Mask>,

@@ -7,7 +7,7 @@
 /// Writes φ_0(x) … φ_m(x) into `out` (length m + 1), by the three-term recurrence
 /// (p+1) P_{p+1}(u) = (2p+1) u P_p(u) − p P_{p−1}(u), u = 2x − 1.
 #[inline]
-pub fn legendre(x: f64, out: &mut [f64]) {
+pub(crate) fn legendre(x: f64, out: &mut [f64]) {
     let u = 2.0 * x - 1.0;
     let mut p_prev = 1.0;
     let mut p = u;
@@ -28,13 +28,13 @@ pub fn legendre(x: f64, out: &mut [f64]) {
 }
 
 /// φ_p(1) = √(2p + 1).
-pub fn legendre_at_one(p: usize) -> f64 {
+pub(crate) fn legendre_at_one(p: usize) -> f64 {
     ((2 * p + 1) as f64).sqrt()
 }
 
 /// ∫_u φ_p φ_q over an interval u of [0, 1], exactly (Gauss with k points), `[p][q]` for
 /// p, q < k: the Gram matrix of the first k polynomials on a part of their interval.
-pub fn interval_gram(u: [f64; 2], k: usize) -> Vec<f64> {
+pub(crate) fn interval_gram(u: [f64; 2], k: usize) -> Vec<f64> {
     let rule = crate::math::quadrature::Rule::for_degree(2 * (k - 1));
     let mut phi = vec![0.0; k];
     let mut m = vec![0.0; k * k];

@@ -23,14 +23,14 @@ use std::sync::{Mutex, OnceLock};
 /// `[χ_{L,0} … χ_{L,m}, χ_{R,0} … χ_{R,m}]`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Filters {
-    pub k: usize,
-    pub h: Vec<f64>,
-    pub g: Vec<f64>,
+    pub(crate) k: usize,
+    pub(crate) h: Vec<f64>,
+    pub(super) g: Vec<f64>,
 }
 
 impl Filters {
     /// The filters of order `m` (k = m + 1), computed once and cached.
-    pub fn of_order(m: usize) -> &'static Filters {
+    pub(crate) fn of_order(m: usize) -> &'static Filters {
         static CACHE: OnceLock<Mutex<Vec<Option<&'static Filters>>>> = OnceLock::new();
         let cache = CACHE.get_or_init(|| Mutex::new(Vec::new()));
         let mut c = cache.lock().unwrap_or_else(|e| e.into_inner());

@@ -13,7 +13,13 @@
 use super::Filters;
 
 /// Scaling → wavelet coefficients, in place. `data.len() == n·k·w`, n a power of two.
-pub fn forward(data: &mut [f64], n: usize, filters: &Filters, w: usize, scratch: &mut Vec<f64>) {
+pub(crate) fn forward(
+    data: &mut [f64],
+    n: usize,
+    filters: &Filters,
+    w: usize,
+    scratch: &mut Vec<f64>,
+) {
     let k = filters.k;
     assert!(n.is_power_of_two() && data.len() == n * k * w);
     scratch.clear();
@@ -47,7 +53,13 @@ pub fn forward(data: &mut [f64], n: usize, filters: &Filters, w: usize, scratch:
 }
 
 /// Wavelet → scaling coefficients, in place; the inverse (and transpose) of [`forward`].
-pub fn inverse(data: &mut [f64], n: usize, filters: &Filters, w: usize, scratch: &mut Vec<f64>) {
+pub(crate) fn inverse(
+    data: &mut [f64],
+    n: usize,
+    filters: &Filters,
+    w: usize,
+    scratch: &mut Vec<f64>,
+) {
     let k = filters.k;
     assert!(n.is_power_of_two() && data.len() == n * k * w);
     scratch.clear();
@@ -83,7 +95,12 @@ pub fn inverse(data: &mut [f64], n: usize, filters: &Filters, w: usize, scratch:
 /// t, which gives the parent's k² scaling coefficients (H⊗H) and 3k² details (G⊗H, H⊗G, G⊗G),
 /// the wavelets of Gortler et al.'s wavelet radiosity for a quadtree. Layout of the result:
 /// `[s₀ (k²) | level 0 (3k²) | level 1 (4·3k²) | …]`, within a level `[cell_t][cell_s][type][q][p]`.
-pub fn forward_square(data: &mut [f64], n: usize, filters: &Filters, scratch: &mut Vec<f64>) {
+pub(crate) fn forward_square(
+    data: &mut [f64],
+    n: usize,
+    filters: &Filters,
+    scratch: &mut Vec<f64>,
+) {
     let k = filters.k;
     let kk = k * k;
     assert!(n.is_power_of_two() && data.len() == n * n * kk);
@@ -117,7 +134,12 @@ pub fn forward_square(data: &mut [f64], n: usize, filters: &Filters, scratch: &m
 }
 
 /// The inverse (and transpose) of [`forward_square`].
-pub fn inverse_square(data: &mut [f64], n: usize, filters: &Filters, scratch: &mut Vec<f64>) {
+pub(crate) fn inverse_square(
+    data: &mut [f64],
+    n: usize,
+    filters: &Filters,
+    scratch: &mut Vec<f64>,
+) {
     let k = filters.k;
     let kk = k * k;
     assert!(n.is_power_of_two() && data.len() == n * n * kk);

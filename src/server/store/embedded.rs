@@ -7,7 +7,7 @@
 //! before `sizes` existed gets it filled in when it is opened.
 //!
 //! redb caches the pages it reads and writes; its cache is given a size
-//! ([`Embedded::open_with_cache`], `--store-cache-bytes`): its default, 1 GiB, let the
+//! (`Embedded::open_with_cache`, `--store-cache-bytes`): its default, 1 GiB, let the
 //! resident memory grow with every image read.
 //!
 //! Every write is one transaction, committed durably before the caller goes on (except
@@ -55,7 +55,7 @@ impl Embedded {
 
     /// Opens (or creates) the database under `dir`; redb caches at most `cache_bytes` of its
     /// pages in memory.
-    pub fn open_with_cache(dir: &Path, cache_bytes: usize) -> Result<Embedded, StoreError> {
+    pub(crate) fn open_with_cache(dir: &Path, cache_bytes: usize) -> Result<Embedded, StoreError> {
         std::fs::create_dir_all(dir)?;
         let db = Database::builder()
             .set_cache_size(cache_bytes)

@@ -43,7 +43,7 @@ pub struct Record {
 }
 
 impl Record {
-    pub fn id(&self) -> &str {
+    fn id(&self) -> &str {
         &self.status.id
     }
 }
@@ -64,13 +64,13 @@ pub enum Inserted {
 pub struct Counts {
     pub queued: usize,
     pub running: usize,
-    pub succeeded: usize,
+    pub(super) succeeded: usize,
     pub failed: usize,
-    pub cancelled: usize,
+    pub(super) cancelled: usize,
 }
 
 impl Counts {
-    pub fn add(&mut self, state: JobState) {
+    fn add(&mut self, state: JobState) {
         match state {
             JobState::Queued => self.queued += 1,
             JobState::Running => self.running += 1,
@@ -150,7 +150,7 @@ pub trait Store: Send + Sync {
 
 /// Which of `jobs` (id, bytes, finished at, for finished jobs only) to forget so that
 /// `total` bytes come down to `max_bytes`: the first finished first, then by id.
-pub fn to_evict(mut jobs: Vec<(String, u64, u64)>, total: u64, max_bytes: u64) -> Vec<String> {
+fn to_evict(mut jobs: Vec<(String, u64, u64)>, total: u64, max_bytes: u64) -> Vec<String> {
     jobs.sort_by(|a, b| (a.2, &a.0).cmp(&(b.2, &b.0)));
     let mut total = total;
     let mut out = Vec::new();
@@ -165,7 +165,7 @@ pub fn to_evict(mut jobs: Vec<(String, u64, u64)>, total: u64, max_bytes: u64) -
 }
 
 /// The status of a job as [`Store::claim`] leaves it: running, at the start.
-pub fn claimed(status: &mut JobStatus, now_ms: u64) {
+fn claimed(status: &mut JobStatus, now_ms: u64) {
     status.state = JobState::Running;
     status.started_ms = Some(now_ms);
     status.finished_ms = None;
@@ -177,7 +177,7 @@ pub fn claimed(status: &mut JobStatus, now_ms: u64) {
 }
 
 /// `true` for a record that [`Store::claim`] may take at `now_ms` given its lease's end.
-pub fn claimable(state: JobState, lease_until_ms: Option<u64>, now_ms: u64) -> bool {
+fn claimable(state: JobState, lease_until_ms: Option<u64>, now_ms: u64) -> bool {
     match state {
         JobState::Queued => true,
         JobState::Running => lease_until_ms.is_none_or(|t| t <= now_ms),

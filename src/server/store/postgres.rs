@@ -251,17 +251,6 @@ impl Postgres {
         Ok(Lazy(Some(self.pool.get().await.map_err(pgerr)?)))
     }
 
-    /// How often a job was claimed (1 for a job solved by one process; more when a process
-    /// lost it), or `None` for an unknown job.
-    pub fn claims(&self, id: &str) -> Result<Option<i32>, StoreError> {
-        self.run(async {
-            let rows = self
-                .query("SELECT claims FROM wavrad_jobs WHERE id = $1", &[&id])
-                .await?;
-            Ok(rows.first().map(|r| r.get(0)))
-        })
-    }
-
     async fn upsert(
         &self,
         record: &Record,
