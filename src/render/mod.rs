@@ -55,13 +55,18 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
     let names = job.surface_names();
     // Independent images, drawn in parallel; each is deterministic on its own.
     // the camera image, and for 3d the lit model with the same exposure and camera
+    // the 3D scene's patches and BVH, shared by the camera image and the meshes' pictures
+    let stage = camera::Stage::of(job);
     let main = || match &job.scene.kind {
         SceneKind::ThreeD(_) => {
             let opts = camera::Options {
                 raw: spec.raw,
                 mesh: spec.mesh,
             };
-            let shot = camera::shoot(job, &outcome.fields, spec.width, spec.height, opts);
+            let shot = match &stage {
+                Some(stage) => stage.shoot(&outcome.fields, spec.width, spec.height, opts, None),
+                None => camera::shoot(job, &outcome.fields, spec.width, spec.height, opts),
+            };
             let view = glb::View {
                 camera: shot.camera,
                 aspect: spec.width as f64 / spec.height as f64,
@@ -121,13 +126,13 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
                 let f = match f {
                     Ok(f) => *f,
                     Err(patches) => {
-                        return encode_png(&camera::view_of(
-                            job,
+                        let stage = stage.as_ref().expect("a mesh is a 3D surface");
+                        return encode_png(&stage.view_of(
                             &outcome.fields,
                             patches.clone(),
                             440,
                             360,
-                        ))
+                        ));
                     }
                 };
                 // each surface on its own scale (the bar says which), unless the document
