@@ -279,7 +279,7 @@ pub struct Solver {
     pub(crate) quadrature: usize,
     pub(crate) epsilon: f64,
     /// The hierarchical method's smallest element edge in scene units; `None`: chosen from the
-    /// scene's size ([`crate::three_d::hierarchy::sizing::Sizing`]).
+    /// scene's size (`three_d::hierarchy::sizing`).
     pub(crate) min_element_size: Option<f64>,
 }
 

@@ -10,7 +10,7 @@ pub mod cluster;
 mod congruence;
 pub mod cover;
 pub mod geometry;
-pub mod hierarchy;
+pub(crate) mod hierarchy;
 pub mod projection;
 mod steps;
 pub mod transfer;

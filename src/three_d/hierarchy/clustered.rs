@@ -54,22 +54,22 @@ const SEPARATION: f64 = 1.0;
 
 /// A link with a cluster at one end or both.
 #[derive(Debug, Clone)]
-pub struct ClusterLink {
-    pub recv: u32,
-    pub src: u32,
+pub(super) struct ClusterLink {
+    pub(super) recv: u32,
+    pub(super) src: u32,
     /// The visible fraction V between the two ends.
-    pub visibility: f64,
+    pub(super) visibility: f64,
     /// Whether every member of the source faces every point of the receiver: the light it
     /// sends is then the affine form of [`Emitter`], else its intensity toward the
     /// receiver's centre.
-    pub affine: bool,
+    pub(super) affine: bool,
     /// The oracle's factor for what taking the ends as points leaves out; when partly
     /// visible, 1, or for a receiver at its finest level the factor with the sampling error
     /// of V added.
-    pub smooth: f64,
+    pub(super) smooth: f64,
     /// The part of `smooth` that is the sampling error of `visibility` (see
     /// [`Hierarchy::split_lowers`]).
-    pub sampled: f64,
+    pub(super) sampled: f64,
 }
 
 /// What a source sends through its cluster links, per channel, summed over its members j
@@ -148,7 +148,7 @@ fn sym_axpy(a: f64, x: &Sym, y: &Sym) -> Sym {
 /// c₀ … c₃ in order, (e₁ e₁ᵀ + e₂ e₂ᵀ) / 12, or on a triangle c₀ c₁ c₂, Σ_i v_i v_iᵀ / 12 with
 /// v_i the vertices' offsets from the centroid (the barycentric coordinates' variance is
 /// 1/18 and their covariance −1/36).
-pub(super) fn covariance(c: &[V3; 4], triangle: bool) -> Sym {
+fn covariance(c: &[V3; 4], triangle: bool) -> Sym {
     if triangle {
         let centroid = scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0);
         let mut out = [0.0; 6];
@@ -227,17 +227,17 @@ impl Emitter {
 
 /// What the oracle needs of a cluster's members, gathered once per refinement pass.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct State {
+pub(super) struct State {
     /// Σ A_j E_j and the largest E_j over the members (largest channel of the peak emission).
-    pub emitted: f64,
-    pub emitted_max: f64,
+    emitted: f64,
+    emitted_max: f64,
     /// Σ A_j B̄_j and the largest B̄_j (the mean of B, largest channel).
-    pub reflected: f64,
-    pub reflected_max: f64,
+    reflected: f64,
+    reflected_max: f64,
     /// The largest ρ, the largest w_R and the least tolerance over the members.
-    pub rho: f64,
-    pub weight: f64,
-    pub tolerance: f64,
+    rho: f64,
+    weight: f64,
+    tolerance: f64,
 }
 
 /// What the oracle makes of a pair with a cluster at an end.
@@ -256,10 +256,10 @@ pub(super) enum ClusterVerdict {
 
 #[derive(Debug, Clone, Copy)]
 pub(super) struct ClusterLinkGeometry {
-    pub visibility: f64,
-    pub affine: bool,
-    pub smooth: f64,
-    pub sampled: f64,
+    pub(super) visibility: f64,
+    pub(super) affine: bool,
+    pub(super) smooth: f64,
+    pub(super) sampled: f64,
 }
 
 /// The shape of one end of a link: its bound, centre and the largest diameter of a member.
@@ -314,7 +314,7 @@ impl Hierarchy<'_> {
 
     /// Calls `f(element, area, centroid, normal)` for each member of a cluster (the root
     /// elements of its patches), or for the element itself.
-    pub(super) fn for_members(&self, id: u32, mut f: impl FnMut(u32, f64, V3, V3)) {
+    fn for_members(&self, id: u32, mut f: impl FnMut(u32, f64, V3, V3)) {
         if is_cluster(id) {
             for &p in self.clusters.members(id) {
                 let q = &self.geo.quads[p as usize];

@@ -25,10 +25,10 @@
 //! exposed part), push-pull turns them into that polynomial by G⁺, and the numbers reported
 //! count the covered part as B = E.
 
-pub mod clustered;
-pub mod refine;
-pub mod sizing;
-pub mod tree;
+mod clustered;
+mod refine;
+mod sizing;
+mod tree;
 
 use crate::math::basis::Filters;
 use crate::math::field::{Field, Leaf};
@@ -58,65 +58,65 @@ const MAX_PASSES: usize = 6;
 const ROUGH: f64 = 1e-3;
 
 /// The elements, links and settings of one hierarchical solve.
-pub struct Hierarchy<'g> {
-    pub geo: &'g Geometry,
-    pub quads: &'g [Quad],
-    pub filters: &'static Filters,
+struct Hierarchy<'g> {
+    geo: &'g Geometry,
+    quads: &'g [Quad],
+    filters: &'static Filters,
     /// The two-scale relation of triangle patches' elements.
-    pub tri_basis: &'static TriangleBasis,
-    pub k: usize,
+    tri_basis: &'static TriangleBasis,
+    k: usize,
     /// The finest level of each surface's quadtree, by [`sizing`].
-    pub levels: Vec<u32>,
-    pub sizing: Sizing,
+    levels: Vec<u32>,
+    sizing: Sizing,
     /// Receivers above this level are split before their sources ([`refine::receiver_first`]).
-    pub receiver_first: u32,
-    pub threshold: f64,
+    receiver_first: u32,
+    threshold: f64,
     /// The typical reflected radiosity (area-weighted mean over the non-emitting surfaces,
     /// mean of the channels) of the last solve; 0 before the first.
-    pub typical: f64,
+    typical: f64,
     /// Largest channel of ρ per surface.
-    pub rho: Vec<f64>,
+    rho: Vec<f64>,
     /// Per receiver surface: how many non-emitting surfaces face it (at least 1), the weight
     /// w_R of the oracle for inter-reflected light ([`refine`]).
-    pub indirect: Vec<f64>,
-    pub accuracy: Accuracy,
+    indirect: Vec<f64>,
+    accuracy: Accuracy,
     /// The grid on which pairs of pieces are compared for congruence: 2⁻³² of the scene.
-    pub unit: f64,
+    unit: f64,
     /// Pairs accepted without a link because none of their rays got through, with their
     /// oracle factor: BF refinement looks at them again as the sources brighten.
-    pub hidden: Vec<(u32, u32, Factors)>,
+    hidden: Vec<(u32, u32, Factors)>,
     /// Kernel evaluations spent on link blocks so far.
-    pub evaluations: std::sync::atomic::AtomicU64,
+    evaluations: std::sync::atomic::AtomicU64,
     /// The covered part of each surface that a solid stands on ([`crate::three_d::cover`]).
-    pub masks: Vec<Option<Mask>>,
+    masks: Vec<Option<Mask>>,
     /// The lines where other surfaces stand on each surface ([`crate::three_d::cover::contacts`]).
-    pub contacts: Vec<Vec<[[f64; 2]; 2]>>,
-    pub elements: Vec<Element>,
-    pub links: Vec<Link>,
+    contacts: Vec<Vec<[[f64; 2]; 2]>>,
+    elements: Vec<Element>,
+    links: Vec<Link>,
     /// The cluster tree over the patches, where the refinement starts ([`clustered`]).
-    pub clusters: Clusters,
+    clusters: Clusters,
     /// Links with a cluster at one end or both.
-    pub cluster_links: Vec<clustered::ClusterLink>,
+    cluster_links: Vec<clustered::ClusterLink>,
     /// Cluster pairs accepted without a link because none of their rays got through, with
     /// the oracle's factor for what the rays may have missed.
-    pub hidden_clusters: Vec<(u32, u32, f64)>,
+    hidden_clusters: Vec<(u32, u32, f64)>,
     /// Per cluster, what the oracle needs of its members, from the last solve.
-    pub cluster_state: Vec<clustered::State>,
-    pub rays: u64,
-    pub refinements: usize,
+    cluster_state: Vec<clustered::State>,
+    rays: u64,
+    refinements: usize,
     /// The most links the refinement may make: their blocks (k⁴ numbers each) in 1 GiB.
-    pub max_links: usize,
+    max_links: usize,
     /// Set when the refinement stopped at `max_links`.
-    pub too_large: bool,
+    too_large: bool,
     /// The document's `iteration`: Gauss–Seidel sweeps ([`Hierarchy::sweep`]) rather than
     /// Jacobi.
-    pub gauss_seidel: bool,
+    gauss_seidel: bool,
 }
 
 impl<'g> Hierarchy<'g> {
     /// Roots for every surface, with E projected, split down to the finest level along the
     /// outline of any covered part; no links yet.
-    pub fn new(
+    fn new(
         geo: &'g Geometry,
         quads: &'g [Quad],
         order: usize,
@@ -145,7 +145,6 @@ impl<'g> Hierarchy<'g> {
                     piece,
                     level: 0,
                     cell: [0, 0],
-                    parent: NONE,
                     children: NONE,
                     area,
                     b: e.clone(),
@@ -212,7 +211,7 @@ impl<'g> Hierarchy<'g> {
     }
 
     /// The finest level element `e`'s surface may be split to.
-    pub fn finest(&self, e: u32) -> u32 {
+    fn finest(&self, e: u32) -> u32 {
         self.levels[self.elements[e as usize].piece.surface]
     }
 
@@ -291,7 +290,7 @@ impl<'g> Hierarchy<'g> {
     }
 
     /// Re-evaluates every link with the current B; returns how many were refined.
-    pub fn rerefine(&mut self, progress: &dyn Progress) -> Result<usize, Cancelled> {
+    fn rerefine(&mut self, progress: &dyn Progress) -> Result<usize, Cancelled> {
         self.typical = self.typical_radiosity();
         for root in 0..self.quads.len() {
             self.measure_detail(root as u32);
@@ -361,7 +360,7 @@ impl<'g> Hierarchy<'g> {
 
     /// One Jacobi sweep: gather over the links, then push-pull. Returns the relative change
     /// of B over the leaves.
-    pub fn sweep(&mut self) -> f64 {
+    fn sweep(&mut self) -> f64 {
         if self.gauss_seidel {
             return self.sweep_gauss_seidel();
         }
@@ -553,7 +552,7 @@ impl<'g> Hierarchy<'g> {
     }
 
     /// Fields of B, E and H over each surface, from the leaves.
-    pub fn fields(&self, pick: impl Fn(&Element) -> Vec<Rgb>) -> Vec<Field> {
+    fn fields(&self, pick: impl Fn(&Element) -> Vec<Rgb>) -> Vec<Field> {
         let order = self.k - 1;
         (0..self.quads.len())
             .map(|s| {
@@ -589,7 +588,7 @@ impl<'g> Hierarchy<'g> {
     /// The links as a picture of the operator: the finest cells of every surface in Z-order
     /// (so that every element covers one run of them), receivers down, sources across; each
     /// link fills its block with the mean kernel value it carries, |T_00| / √(A_r A_s).
-    pub fn picture(&self, max_side: usize) -> crate::methods::compress::MagnitudePicture {
+    fn picture(&self, max_side: usize) -> crate::methods::compress::MagnitudePicture {
         // each surface's finest cells, one run after another
         let mut start = vec![0usize; self.quads.len() + 1];
         for (i, &l) in self.levels.iter().enumerate() {
@@ -612,7 +611,7 @@ impl<'g> Hierarchy<'g> {
         crate::methods::compress::block_picture(start[self.quads.len()], max_side, blocks)
     }
 
-    pub fn stats(&self) -> HierarchyStats {
+    fn stats(&self) -> HierarchyStats {
         HierarchyStats {
             elements: self.elements.len(),
             leaves: self.elements.iter().filter(|e| e.is_leaf()).count(),
@@ -721,7 +720,7 @@ fn stopped(h: &Hierarchy, _: Cancelled) -> JobError {
 
 /// Solves a job by hierarchical wavelet radiosity at the given order, with elements no smaller
 /// than the document's `min_element_size` and, when given, no finer than `resolution`.
-pub fn solve(
+pub(crate) fn solve(
     job: &Job,
     order: usize,
     resolution: Option<usize>,

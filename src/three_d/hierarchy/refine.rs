@@ -51,12 +51,12 @@ use rayon::prelude::*;
 /// inside a coarse receiver do not see: on the Cornell box's floor in front of the short
 /// block, 1 / 5 / 10 units from its foot, the whole tolerance left B +40 / +24 / +16 % bright;
 /// half of it, +14 / +3 / −0.4 %, for 65 k → 70 k links (a quarter: +4 / −4 / −5 %, 77 k).
-pub const CONTACT_SHARE: f64 = 0.5;
+pub(super) const CONTACT_SHARE: f64 = 0.5;
 
 /// A receiver surface whose mean B is below this share of the typical B (the area-weighted
 /// mean over the non-emitting surfaces) is dim: the oracle's tolerance for it shrinks with
 /// the cube of the ratio ([`Hierarchy::tolerance`]), down to [`DIM_SHARE`].
-pub const DIM_KNEE: f64 = 0.5;
+const DIM_KNEE: f64 = 0.5;
 
 /// The least share of the tolerance for a dim receiver surface.
 const DIM_SHARE: f64 = 0.0625;
@@ -83,20 +83,20 @@ const DIM_SHARE: f64 = 0.0625;
 /// kernel's or more put the balance back at 0.989 but the cells at 3.6 %. Below that level
 /// the larger piece is split as before: to split receivers first at every level cost up to
 /// twelve times the links, for no better cells.
-pub fn receiver_first(order: usize) -> u32 {
+pub(super) fn receiver_first(order: usize) -> u32 {
     3u32.saturating_sub((order + 1).ilog2())
 }
 
 /// The geometric part of the oracle's estimate for one pair.
 #[derive(Debug, Clone, Copy)]
-pub struct Factors {
+pub(super) struct Factors {
     /// F̂: the largest point-to-piece form factor from the receiver to the source.
-    pub f: f64,
+    f: f64,
     /// (d / (d + dist))^(m+1), or 1 when the pair is partly visible.
-    pub smooth: f64,
+    smooth: f64,
     /// Whether the receiver touches a contact line and something may come between it and
     /// the source ([`CONTACT_SHARE`]).
-    pub contact: bool,
+    pub(super) contact: bool,
 }
 
 /// What the oracle makes of a pair.
@@ -117,15 +117,13 @@ enum Verdict {
 
 /// An interaction from `src` to `recv`.
 #[derive(Debug, Clone)]
-pub struct Link {
-    pub recv: u32,
-    pub src: u32,
+pub(super) struct Link {
+    pub(super) recv: u32,
+    pub(super) src: u32,
     /// The oracle's geometric factors, to judge the link again as B changes.
-    pub factors: Factors,
-    /// Visible fraction (of the whole transfer).
-    pub visibility: f64,
-    /// k² × k², row = receiver coefficient.
-    pub block: Vec<f64>,
+    pub(super) factors: Factors,
+    /// k² × k², row = receiver coefficient (the visible fraction is in it).
+    pub(super) block: Vec<f64>,
 }
 
 impl Hierarchy<'_> {
@@ -203,7 +201,7 @@ impl Hierarchy<'_> {
         let parent = self.elements[e as usize].clone();
         let kk = self.k * self.k;
         if self.geo.quads[parent.piece.surface].tri {
-            self.split_triangle(e, &parent);
+            self.split_triangle(&parent);
             self.elements[e as usize].children = first;
             return first;
         }
@@ -243,7 +241,6 @@ impl Hierarchy<'_> {
                         2 * parent.cell[0] + ds as u32,
                         2 * parent.cell[1] + dt as u32,
                     ],
-                    parent: e,
                     children: NONE,
                     area: parent.area / 4.0,
                     e: e_coeffs,
@@ -260,7 +257,7 @@ impl Hierarchy<'_> {
     /// The four children of the midpoint split of a triangle element, in the order of
     /// [`crate::math::triangle::CHILDREN`], with B pushed exactly by the triangle basis' two-
     /// scale relation.
-    fn split_triangle(&mut self, id: u32, parent: &Element) {
+    fn split_triangle(&mut self, parent: &Element) {
         let kk = self.k * self.k;
         let basis = self.tri_basis;
         let quad = &self.quads[parent.piece.surface];
@@ -287,7 +284,6 @@ impl Hierarchy<'_> {
                 piece,
                 level: parent.level + 1,
                 cell: [at(piece.s[0]), at(piece.t[0])],
-                parent: id,
                 children: NONE,
                 area: parent.area / 4.0,
                 e,
@@ -310,7 +306,7 @@ impl Hierarchy<'_> {
     }
 
     /// Whether element `e` touches a line where another surface stands on its surface.
-    pub(super) fn at_contact(&self, e: u32) -> bool {
+    fn at_contact(&self, e: u32) -> bool {
         let p = self.elements[e as usize].piece;
         self.contacts[p.surface]
             .iter()
@@ -709,7 +705,6 @@ impl Hierarchy<'_> {
                     recv,
                     src,
                     factors,
-                    visibility: seen.whole,
                     block,
                 }
             })
@@ -735,7 +730,7 @@ fn first_of_each<K: std::hash::Hash + Eq, T>(
 }
 
 /// The largest emission channel of `quad` if `piece` overlaps its emission region, else 0.
-pub fn peak_emission(quad: &crate::scene::Quad, piece: Piece) -> f64 {
+pub(super) fn peak_emission(quad: &crate::scene::Quad, piece: Piece) -> f64 {
     let (rs, rt) = quad.emission_region;
     let overlaps =
         piece.s[0] < rs[1] && rs[0] < piece.s[1] && piece.t[0] < rt[1] && rt[0] < piece.t[1];

@@ -26,14 +26,14 @@ const DEFAULT_DIVISIONS: f64 = 64.0;
 
 /// The smallest element edge and, when the document gives it, the finest resolution.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Sizing {
-    pub min_element_size: f64,
-    pub resolution: Option<usize>,
+pub(super) struct Sizing {
+    pub(super) min_element_size: f64,
+    resolution: Option<usize>,
 }
 
 impl Sizing {
     /// `min_element_size` when given, else the default from the scene's size.
-    pub fn new(
+    pub(super) fn new(
         quads: &[Parallelogram],
         min_element_size: Option<f64>,
         resolution: Option<usize>,
@@ -47,7 +47,7 @@ impl Sizing {
 
     /// The finest quadtree level of surface `q`: of a parallelogram by its longer side (and
     /// `resolution`, when given), of a triangle by its longest side.
-    pub fn finest_level(&self, q: &Parallelogram) -> u32 {
+    pub(super) fn finest_level(&self, q: &Parallelogram) -> u32 {
         let edge = if q.tri {
             q.diameter()
         } else {

@@ -12,42 +12,41 @@ use crate::scene::Rgb;
 use crate::three_d::cover::Exposure;
 use crate::three_d::geometry::Piece;
 
-pub const NONE: u32 = u32::MAX;
+pub(super) const NONE: u32 = u32::MAX;
 
 #[derive(Debug, Clone)]
-pub struct Element {
-    pub piece: Piece,
-    pub level: u32,
+pub(super) struct Element {
+    pub(super) piece: Piece,
+    pub(super) level: u32,
     /// Cell indices (s, t) at its level.
-    pub cell: [u32; 2],
-    pub parent: u32,
+    pub(super) cell: [u32; 2],
     /// First of four children (`[t][s]` order), or [`NONE`].
-    pub children: u32,
+    pub(super) children: u32,
     /// World area.
-    pub area: f64,
-    pub e: Vec<Rgb>,
+    pub(super) area: f64,
+    pub(super) e: Vec<Rgb>,
     /// The largest emission inside the element (a light patch may cover only part of it).
-    pub peak: f64,
-    pub b: Vec<Rgb>,
-    pub h: Vec<Rgb>,
+    pub(super) peak: f64,
+    pub(super) b: Vec<Rgb>,
+    pub(super) h: Vec<Rgb>,
     /// The root mean square of B minus its polynomial on this element over the element
     /// (largest channel), from the leaves below: what a link that uses this element as a
     /// source leaves out.
-    pub detail: f64,
+    pub(super) detail: f64,
     /// How much of it a solid standing on the surface leaves exposed ([`crate::three_d::cover`]).
     /// On a partly covered element, `b` and `h` are the polynomials of the exposed part
     /// (see [`Element::reported`]).
-    pub exposure: Exposure,
+    pub(super) exposure: Exposure,
 }
 
 impl Element {
-    pub fn is_leaf(&self) -> bool {
+    pub(super) fn is_leaf(&self) -> bool {
         self.children == NONE
     }
 
     /// The projection of the whole element's B (or H, with `e` = 0) from the exposed part's
     /// polynomial `v`: E on the covered part, `v` on the rest, i.e. e + G (v − e).
-    pub fn reported(&self, v: &[Rgb], e: &[Rgb]) -> Vec<Rgb> {
+    pub(super) fn reported(&self, v: &[Rgb], e: &[Rgb]) -> Vec<Rgb> {
         match &self.exposure {
             Exposure::Open => v.to_vec(),
             Exposure::Covered => e.to_vec(),
@@ -68,14 +67,14 @@ impl Element {
     }
     /// The brightness the oracle weighs a transfer by: the mean of B (largest channel) plus
     /// the peak emission inside, so that a small light on a large surface is not averaged away.
-    pub fn brightness(&self) -> f64 {
+    pub(super) fn brightness(&self) -> f64 {
         let c = self.b[0];
         c[0].max(c[1]).max(c[2]) / self.area.sqrt() + self.peak
     }
 }
 
 /// The coefficients of child (dt, ds) of a parent polynomial `parent` (k² each).
-pub fn push(filters: &Filters, parent: &[Rgb], dt: usize, ds: usize, out: &mut [Rgb]) {
+pub(super) fn push(filters: &Filters, parent: &[Rgb], dt: usize, ds: usize, out: &mut [Rgb]) {
     let k = filters.k;
     let h = &filters.h;
     out.fill([0.0; 3]);
@@ -98,7 +97,7 @@ pub fn push(filters: &Filters, parent: &[Rgb], dt: usize, ds: usize, out: &mut [
 }
 
 /// Adds the projection of child (dt, ds)'s coefficients onto the parent's space to `parent`.
-pub fn pull(filters: &Filters, child: &[Rgb], dt: usize, ds: usize, parent: &mut [Rgb]) {
+pub(super) fn pull(filters: &Filters, child: &[Rgb], dt: usize, ds: usize, parent: &mut [Rgb]) {
     let k = filters.k;
     let h = &filters.h;
     for qt in 0..k {
