@@ -311,6 +311,55 @@ pub(crate) fn sample_ranks(len: usize, count: usize) -> Vec<usize> {
         .collect()
 }
 
+/// How many of `values()` there are, and the `count` of them at ranks evenly spaced from the
+/// largest to the smallest ([`sample_ranks`]), exactly as a sort from the largest would give
+/// them, without sorting them all: `values` yields positive finite numbers and is called
+/// twice. A histogram over the top bits of the numbers (their order as floats is that of
+/// their bits) finds the bin of each rank; only the bins that hold a rank are kept and
+/// sorted. The 7 M links of a 10⁵-triangle scene have 116 M coefficients, which a sorted
+/// copy held in 0.9 GB.
+pub(crate) fn ranked<I: Iterator<Item = f64>>(
+    values: impl Fn() -> I,
+    count: usize,
+) -> (usize, Vec<(usize, f64)>) {
+    // 2¹⁹ bins of positive floats: the exponent and 8 bits of the mantissa
+    const SHIFT: u32 = 44;
+    let bin = |v: f64| (v.to_bits() >> SHIFT) as usize;
+    let mut counts = vec![0usize; 1 << (64 - SHIFT)];
+    for v in values() {
+        counts[bin(v)] += 1;
+    }
+    let len: usize = counts.iter().sum();
+    let ranks = sample_ranks(len, count);
+    // the bins from the largest down, with the ranks before each: rank r is in the bin
+    // where the running count passes it, at r less what the bins above hold
+    let mut wanted: Vec<(usize, usize, usize)> = Vec::with_capacity(ranks.len());
+    let mut above = 0;
+    let mut next = ranks.iter().peekable();
+    for (b, &c) in counts.iter().enumerate().rev() {
+        while let Some(&&r) = next.peek() {
+            if r >= above + c {
+                break;
+            }
+            wanted.push((r, b, r - above));
+            next.next();
+        }
+        above += c;
+    }
+    let mut held: std::collections::BTreeMap<usize, Vec<f64>> =
+        wanted.iter().map(|&(_, b, _)| (b, Vec::new())).collect();
+    for v in values() {
+        if let Some(h) = held.get_mut(&bin(v)) {
+            h.push(v);
+        }
+    }
+    for h in held.values_mut() {
+        h.sort_unstable_by(|a, b| b.total_cmp(a));
+    }
+    let out = wanted.iter().map(|&(r, b, k)| (r, held[&b][k])).collect();
+    (len, out)
+}
+
 /// Which entries a keep rule keeps, decided entry by entry in row-major order: every |v| above
 /// the cut, and entries at the cut while ties are left (all of them for a threshold rule), so
 /// the selection is deterministic.
@@ -576,6 +625,36 @@ impl Operator for Csr {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn ranked_magnitudes_are_those_of_the_sorted_values() {
+        // many decades, ties (as congruent blocks give), and neighbours within one bin
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut values = Vec::new();
+        for i in 0..20_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let u = (x >> 11) as f64 / (1u64 << 53) as f64;
+            values.push(match i % 4 {
+                0 => 10f64.powf(-12.0 + 14.0 * u),
+                1 => 0.25,
+                2 => 0.25 * (1.0 + 1e-9 * u),
+                _ => 1e-3 * (1.0 + u),
+            });
+        }
+        let mut sorted = values.clone();
+        sorted.sort_unstable_by(|a, b| b.total_cmp(a));
+        for count in [0, 1, 2, 7, 256, 20_000, 30_000] {
+            let (len, got) = ranked(|| values.iter().copied(), count);
+            assert_eq!(len, values.len());
+            let want: Vec<(usize, f64)> = sample_ranks(len, count)
+                .into_iter()
+                .map(|r| (r, sorted[r]))
+                .collect();
+            assert_eq!(got, want, "count {count}");
+        }
+    }
     use super::*;
     use crate::progress::Silent;
 
