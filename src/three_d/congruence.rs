@@ -87,6 +87,13 @@ type Key = [i64; 18];
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Congruence {
     pub(super) key: Key,
+    pub(super) labels: Labels,
+}
+
+/// How a pair's labels map to its class's: what a link needs of its class once the class's
+/// block is known (a few bytes, where the key is 144).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Labels {
     /// The class's first piece is the pair's second.
     reverse: bool,
     /// Relabellings of the class's first and second piece.
@@ -124,9 +131,11 @@ impl Congruence {
         let ((key, first, second), reverse) = best;
         Congruence {
             key,
-            reverse,
-            first,
-            second,
+            labels: Labels {
+                reverse,
+                first,
+                second,
+            },
         }
     }
 
@@ -153,12 +162,29 @@ impl Congruence {
         };
         Congruence {
             key,
-            reverse: false,
-            first: same,
-            second: same,
+            labels: Labels {
+                reverse: false,
+                first: same,
+                second: same,
+            },
         }
     }
 
+    /// [`Labels::to_class`].
+    #[allow(clippy::wrong_self_convention)]
+    pub(super) fn to_class(&self, block: &[f64], k: usize) -> Vec<f64> {
+        self.labels.to_class(block, k)
+    }
+
+    /// [`Labels::from_class`].
+    #[cfg(test)]
+    #[allow(clippy::wrong_self_convention)]
+    fn from_class(&self, class: &[f64], k: usize) -> Vec<f64> {
+        self.labels.from_class(class, k)
+    }
+}
+
+impl Labels {
     /// For every entry of a k² × k² block in the class's labels, the pair's entry (row =
     /// a's function, column = b's) and the sign between them.
     fn entries(&self, k: usize) -> impl Iterator<Item = (usize, usize, f64)> + '_ {
@@ -398,8 +424,7 @@ mod tests {
                     let (fa, pa) = relabelled(&floor, a, ra, 0);
                     let (fb, pb) = relabelled(&wall, b, rb, 1);
                     let direct = galerkin(&[fa, fb], pa, pb, k);
-                    let c = Congruence {
-                        key: [0; 18],
+                    let c = Labels {
                         reverse: false,
                         first: ra,
                         second: rb,

@@ -35,7 +35,7 @@ use super::tree::{push, Element, NONE};
 use super::Hierarchy;
 use crate::progress::{Cancelled, Progress};
 use crate::three_d::cluster::is_cluster;
-use crate::three_d::congruence::Congruence;
+use crate::three_d::congruence::{Congruence, Labels};
 use crate::three_d::cover::Exposure;
 use crate::three_d::geometry::Piece;
 use crate::three_d::geometry::{add, dot, norm, normalize, quad_quad, scale, sub};
@@ -661,14 +661,31 @@ impl Hierarchy<'_> {
     ) -> Result<Vec<Link>, Cancelled> {
         let k = self.k;
         let piece = |e: u32| self.elements[e as usize].piece;
-        let classes: Vec<Congruence> = pending
-            .par_iter()
-            .map(|&(r, s, _, _)| {
-                Congruence::of(&self.geo.quads, piece(r), piece(s), self.unit, false)
-            })
-            .collect();
-        let (unique, slots) = first_of_each(classes.iter().map(|c| c.key).zip(0..pending.len()));
-        let blocks: Vec<Vec<f64>> = unique
+        // the class of each pair, a chunk of pairs at a time: a class's key (144 bytes) lives
+        // only in the map of classes, and a pair keeps its slot and labels (its whole
+        // congruence, kept for every pair, was a third of a 10⁵-triangle job's peak)
+        const CHUNK: usize = 1 << 16;
+        let mut index = rustc_hash::FxHashMap::default();
+        let mut firsts: Vec<usize> = Vec::new();
+        let mut mapped: Vec<(u32, Labels)> = Vec::with_capacity(pending.len());
+        for start in (0..pending.len()).step_by(CHUNK) {
+            let chunk = &pending[start..(start + CHUNK).min(pending.len())];
+            let classes: Vec<Congruence> = chunk
+                .par_iter()
+                .map(|&(r, s, _, _)| {
+                    Congruence::of(&self.geo.quads, piece(r), piece(s), self.unit, false)
+                })
+                .collect();
+            for (i, c) in classes.iter().enumerate() {
+                let slot = *index.entry(c.key).or_insert_with(|| {
+                    firsts.push(start + i);
+                    firsts.len() as u32 - 1
+                });
+                mapped.push((slot, c.labels));
+            }
+        }
+        drop(index);
+        let blocks: Vec<Vec<f64>> = firsts
             .par_iter()
             .map(|&i| {
                 progress.check()?;
@@ -684,15 +701,16 @@ impl Hierarchy<'_> {
                 );
                 self.evaluations
                     .fetch_add(evaluations, std::sync::atomic::Ordering::Relaxed);
-                Ok(classes[i].to_class(&block, k))
+                let class = Congruence::of(&self.geo.quads, piece(a), piece(b), self.unit, false);
+                Ok(class.to_class(&block, k))
             })
             .collect::<Result<_, Cancelled>>()?;
         let steps = Steps::new(k);
         Ok(pending
             .iter()
-            .zip(classes.iter().zip(slots))
-            .map(|(&(recv, src, factors, seen), (class, slot))| {
-                let mut block = class.from_class(&blocks[slot], k);
+            .zip(mapped)
+            .map(|(&(recv, src, factors, seen), (slot, labels))| {
+                let mut block = labels.from_class(&blocks[slot as usize], k);
                 match &self.elements[recv as usize].exposure {
                     // unless the source sends nothing to the covered part: then the block
                     // already holds the moments of the exposed part
