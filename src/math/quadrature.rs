@@ -50,7 +50,8 @@ impl Rule {
     }
 
     /// ∫_a^b f.
-    pub fn integrate(&self, a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn integrate(&self, a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
         let h = b - a;
         let mut sum = 0.0;
         for (x, w) in self.nodes.iter().zip(&self.weights) {

@@ -161,7 +161,8 @@ fn to_parent(child: usize, s: f64, t: f64) -> [f64; 2] {
 /// The child that holds the parent's point (s, t) (a point of the triangle), and that point in
 /// the child's (s, t): the inverse of [`to_parent`]. A point on an edge between two children
 /// goes to the corner child rather than the centre one, and (½, ½) to child 1.
-pub fn locate(s: f64, t: f64) -> (usize, [f64; 2]) {
+#[cfg(test)]
+pub(crate) fn locate(s: f64, t: f64) -> (usize, [f64; 2]) {
     if s >= 0.5 {
         (1, [2.0 * s - 1.0, 2.0 * t])
     } else if t >= 0.5 {
@@ -175,7 +176,8 @@ pub fn locate(s: f64, t: f64) -> (usize, [f64; 2]) {
 
 /// The four children of the triangle with vertices `v` (in any dimension), in the order and
 /// with the vertex order of `CHILDREN`.
-pub fn split<const D: usize>(v: &[[f64; D]; 3]) -> [[[f64; D]; 3]; 4] {
+#[cfg(test)]
+pub(crate) fn split<const D: usize>(v: &[[f64; D]; 3]) -> [[[f64; D]; 3]; 4] {
     let mid =
         |a: usize, b: usize| -> [f64; D] { std::array::from_fn(|k| 0.5 * (v[a][k] + v[b][k])) };
     let (m01, m12, m02) = (mid(0, 1), mid(1, 2), mid(0, 2));
@@ -272,7 +274,8 @@ impl TriangleRule {
         }
     }
 
-    pub fn len(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn len(&self) -> usize {
         self.points.len()
     }
 
@@ -290,7 +293,8 @@ impl TriangleRule {
     }
 
     /// ∫_T f dA over a triangle of area `area`, f as a function of its (s, t).
-    pub fn integrate(&self, area: f64, f: impl FnMut(f64, f64) -> f64) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn integrate(&self, area: f64, f: impl FnMut(f64, f64) -> f64) -> f64 {
         area * self.mean(f)
     }
 }
@@ -371,12 +375,18 @@ impl TriangleBasis {
     }
 
     /// The values at the triangle's three vertices, in order.
-    pub fn vertex_values<const C: usize>(&self, coeffs: &[[f64; C]], area: f64) -> [[f64; C]; 3] {
+    #[cfg(test)]
+    pub(crate) fn vertex_values<const C: usize>(
+        &self,
+        coeffs: &[[f64; C]],
+        area: f64,
+    ) -> [[f64; C]; 3] {
         std::array::from_fn(|v| combine(coeffs, &self.vertices[v], area))
     }
 
     /// The mean over the triangle: c₀ / √A.
-    pub fn mean<const C: usize>(&self, coeffs: &[[f64; C]], area: f64) -> [f64; C] {
+    #[cfg(test)]
+    pub(crate) fn mean<const C: usize>(&self, coeffs: &[[f64; C]], area: f64) -> [f64; C] {
         let r = area.sqrt().recip();
         coeffs[0].map(|v| v * r)
     }
@@ -384,7 +394,8 @@ impl TriangleBasis {
     /// The coefficients of the L² projection of `f` (a function of (s, t)) onto the basis of a
     /// triangle of area `area`, c_j = ∫_T f ψ_j dA, by `rule`: exact when f is a polynomial of
     /// degree ≤ `rule.degree` − m.
-    pub fn project<const C: usize>(
+    #[cfg(test)]
+    pub(crate) fn project<const C: usize>(
         &self,
         area: f64,
         rule: &TriangleRule,

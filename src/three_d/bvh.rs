@@ -187,7 +187,8 @@ impl Bvh {
     }
 
     /// How many surfaces the tree holds.
-    pub fn len(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn len(&self) -> usize {
         self.members
     }
 

@@ -81,7 +81,8 @@ pub struct Partial {
 
 impl Partial {
     /// The exposed share of the area: G_00, as φ_0 = 1 on the unit square.
-    pub fn fraction(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn fraction(&self) -> f64 {
         self.gram[0]
     }
 

@@ -37,7 +37,8 @@ pub struct Accuracy {
 
 impl Accuracy {
     /// Close to machine precision (closed-form checks, the projection method).
-    pub fn fine(q_min: usize) -> Accuracy {
+    #[cfg(test)]
+    pub(crate) fn fine(q_min: usize) -> Accuracy {
         Accuracy {
             q_min,
             digits: 13.0,

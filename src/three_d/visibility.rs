@@ -210,7 +210,8 @@ impl Seen {
     };
 
     /// The mean fraction over each quarter of the receiver (`ds + 2 dt`).
-    pub fn quarters(&self) -> [f64; 4] {
+    #[cfg(test)]
+    pub(crate) fn quarters(&self) -> [f64; 4] {
         let mut q = [0.0; 4];
         for (c, v) in self.cells.iter().enumerate() {
             q[quarter_of(c)] += v / (CELLS / 4) as f64;
@@ -293,7 +294,8 @@ fn extend(known: &[Option<f64>; 4], q: usize, whole: f64) -> f64 {
 /// counting them would make a block's back-facing part, which a ray through the block itself
 /// always finds occluded, darken its front. Returns 0 when no pair faces; the number of rays
 /// cast is added to `rays`.
-pub fn visible_fraction(
+#[cfg(test)]
+pub(crate) fn visible_fraction(
     bvh: &Bvh,
     a: Piece,
     b: Piece,

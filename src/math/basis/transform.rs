@@ -258,7 +258,8 @@ fn two_by_two_inverse(parent: &[f64], children: &mut [f64], f: &Filters) {
 }
 
 /// (level, index within level) of wavelet-layout position `i / k`: level −1 is s₀.
-pub fn level_of(i: usize, k: usize) -> i32 {
+#[cfg(test)]
+pub(crate) fn level_of(i: usize, k: usize) -> i32 {
     let c = i / k;
     if c == 0 {
         -1
