@@ -121,6 +121,11 @@ impl Bound {
         norm(sub(self.hi, self.lo))
     }
 
+    /// The sphere about the box: its centre and radius.
+    pub(super) fn sphere(&self) -> (V3, f64) {
+        (scale(add(self.lo, self.hi), 0.5), 0.5 * self.diameter())
+    }
+
     /// The distance between the two boxes (0 when they meet).
     pub(super) fn distance(&self, other: &Bound) -> f64 {
         let gap = |a: usize| {
