@@ -604,8 +604,9 @@ impl Hierarchy<'_> {
             let source = self.emitter(l.src, emitters);
             // a member whose plane leaves the source's sphere behind it receives nothing: the
             // weights' centroid, where the transfer puts the source, is inside that sphere
-            // (the weights are not negative when every member faces the receiver), so the
-            // transfer would find n · d < 0 there, after three times the work
+            // (the weights A B̄ n · (x − y) are not negative: every member faces the receiver,
+            // and B̄ ≥ 0), so the transfer would find n · d < 0 there, after three times the
+            // work
             let (sc, sr) = self.end(l.src).bound.sphere();
             self.for_members(l.recv, |_, area, x, n| {
                 if dot(n, sub(sc, x)) < -sr {
