@@ -63,10 +63,8 @@ pub fn render_all(job: &Job, outcome: &Outcome) -> Images {
                 raw: spec.raw,
                 mesh: spec.mesh,
             };
-            let shot = match &stage {
-                Some(stage) => stage.shoot(&outcome.fields, spec.width, spec.height, opts, None),
-                None => camera::shoot(job, &outcome.fields, spec.width, spec.height, opts),
-            };
+            let stage = stage.as_ref().expect("a 3D scene has a stage");
+            let shot = stage.shoot(&outcome.fields, spec.width, spec.height, opts, None);
             let view = glb::View {
                 camera: shot.camera,
                 aspect: spec.width as f64 / spec.height as f64,

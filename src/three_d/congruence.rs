@@ -169,19 +169,6 @@ impl Congruence {
             },
         }
     }
-
-    /// [`Labels::to_class`].
-    #[allow(clippy::wrong_self_convention)]
-    pub(super) fn to_class(&self, block: &[f64], k: usize) -> Vec<f64> {
-        self.labels.to_class(block, k)
-    }
-
-    /// [`Labels::from_class`].
-    #[cfg(test)]
-    #[allow(clippy::wrong_self_convention)]
-    fn from_class(&self, class: &[f64], k: usize) -> Vec<f64> {
-        self.labels.from_class(class, k)
-    }
 }
 
 impl Labels {
@@ -554,7 +541,7 @@ mod tests {
             for k in [1, 2, 3] {
                 let t1 = galerkin(&here, a, b, k);
                 let t2 = galerkin(&there, pa, pb, k);
-                let mapped = c2.from_class(&c1.to_class(&t1, k), k);
+                let mapped = c2.labels.from_class(&c1.labels.to_class(&t1, k), k);
                 close(&t2, &mapped, &format!("case {case}, k={k}"));
             }
         }

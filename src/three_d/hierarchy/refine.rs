@@ -701,8 +701,7 @@ impl Hierarchy<'_> {
                 );
                 self.evaluations
                     .fetch_add(evaluations, std::sync::atomic::Ordering::Relaxed);
-                let class = Congruence::of(&self.geo.quads, piece(a), piece(b), self.unit, false);
-                Ok(class.to_class(&block, k))
+                Ok(mapped[i].1.to_class(&block, k))
             })
             .collect::<Result<_, Cancelled>>()?;
         let steps = Steps::new(k);
