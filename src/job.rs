@@ -114,6 +114,7 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
                 .iter()
                 .map(|&(i, j)| [names[i].clone(), names[j].clone()])
                 .collect(),
+            kernel_error_sampling: sol.kernel_error_sampling.clone(),
             radiosity_relative_error: radiosity_error,
             reference,
             iterations: sol.solved.iterations,
@@ -370,6 +371,7 @@ fn projection_solve(
         picture: Some(picture),
         solved,
         kernel_error: None,
+        kernel_error_sampling: None,
         left_out: system.touching.clone(),
         hierarchy: None,
         timings,
@@ -459,9 +461,9 @@ fn kernel_error_3d(
 ) -> Result<KernelError3d, Cancelled> {
     progress.check()?;
     // eq. (5) over every pair of patches would cost as much as the solve on a mesh (and its
-    // cells are the parallelograms'): it is measured on scenes of parallelograms only
+    // cells are the parallelograms'): on a scene with triangles the hierarchy samples it
     if quads.iter().any(|q| q.triangle) {
-        return Ok((None, Vec::new()));
+        return Ok((sol.kernel_error, sol.left_out.clone()));
     }
     let geo = three_d::Geometry::new(quads);
     let touching = geo.touching();

@@ -80,12 +80,25 @@ pub struct Coefficients {
     pub sorted_ranks: Vec<usize>,
 }
 
+/// How eq. (5) was sampled.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct KernelErrorSampling {
+    /// Pairs of points drawn, each uniform by area over the scene.
+    pub point_pairs: usize,
+    /// The standard error of `kernel_relative_error` (a ratio of two sample means).
+    pub standard_error: f64,
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Metrics {
     /// Eq. (5) over the pairs of surfaces that do not touch.
     pub kernel_relative_error: Option<f64>,
     /// The pairs of surfaces left out of eq. (5) because they touch.
     pub kernel_pairs_left_out: Vec<[String; 2]>,
+    /// On scenes with triangles, eq. (5) is sampled at random pairs of points rather than
+    /// integrated over every pair of surfaces: how, and its standard error.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kernel_error_sampling: Option<KernelErrorSampling>,
     /// Eq. (6), when a reference is set.
     pub radiosity_relative_error: Option<f64>,
     /// What eq. (6) was measured against: "exact" or "order m, resolution n".

@@ -289,6 +289,22 @@ fn far_meshes_are_linked_as_clusters_and_give_howells_form_factor() {
         "{got} against ρ E F = {}",
         0.5 * f
     );
+    // eq. (5), sampled: the links' kernel is off by the same order (d / c)² = 2 % at most,
+    // so ∫∫(K − K̂)² / ∫∫K² is at most its square; the meshes touch only themselves
+    let m = &o.result.metrics;
+    let sampling = m.kernel_error_sampling.as_ref().expect("eq. (5) sampled");
+    let eq5 = m.kernel_relative_error.expect("eq. (5)");
+    eprintln!("eq. (5) {eq5:.2e} ± {:.1e}", sampling.standard_error);
+    assert!(
+        eq5 > 0.0 && eq5 + 4.0 * sampling.standard_error < 0.02f64.powi(2),
+        "eq. (5) {eq5} ± {}",
+        sampling.standard_error
+    );
+    assert_eq!(sampling.point_pairs, 1 << 16);
+    assert_eq!(
+        m.kernel_pairs_left_out,
+        [["lamp", "lamp"], ["floor", "floor"]].map(|p| p.map(String::from))
+    );
 }
 
 /// Howell's C-14 between two unit squares at a right angle sharing an edge (F = 0.200044),

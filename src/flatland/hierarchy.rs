@@ -805,6 +805,7 @@ pub(crate) fn solve(
             converged,
         },
         kernel_error: None,
+        kernel_error_sampling: None,
         left_out: Vec::new(),
         hierarchy: Some(stats),
         timings,

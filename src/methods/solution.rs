@@ -68,6 +68,8 @@ pub struct Solution {
     /// Eq. (5) and the surface pairs it left out.
     pub(crate) kernel_error: Option<f64>,
     pub(crate) left_out: Vec<(usize, usize)>,
+    /// Set when eq. (5) was sampled rather than integrated.
+    pub(crate) kernel_error_sampling: Option<crate::result::KernelErrorSampling>,
     pub(crate) hierarchy: Option<HierarchyStats>,
     pub(crate) timings: BTreeMap<String, f64>,
     /// Σ K_ij² of the kept entries per (row surface, column surface), `S × S`, for eq. (5).

@@ -26,6 +26,7 @@
 //! count the covered part as B = E.
 
 mod clustered;
+mod kernel_error;
 mod refine;
 mod sizing;
 mod tree;
@@ -827,6 +828,14 @@ pub(crate) fn solve(
         kept_squares[r.piece.surface * surfaces + s.piece.surface] +=
             l.block.iter().map(|v| v * v).sum::<f64>();
     }
+    // eq. (5) over the pairs of surfaces needs their blocks' squares, which cluster links do
+    // not have: with triangles it is sampled
+    let sampled = with_triangles.then(|| {
+        let t = Instant::now();
+        let s = h.sampled_kernel_error(&surface_groups(quads), kernel_error::PAIRS);
+        timings.insert("kernel_error".into(), ms(t));
+        s
+    });
     let leaf_b: Vec<Rgb> = h
         .elements
         .iter()
@@ -853,8 +862,15 @@ pub(crate) fn solve(
             residual,
             converged,
         },
-        kernel_error: None,
-        left_out: Vec::new(),
+        kernel_error: sampled.as_ref().map(|s| s.value),
+        left_out: sampled
+            .as_ref()
+            .map(|s| s.left_out.clone())
+            .unwrap_or_default(),
+        kernel_error_sampling: sampled.map(|s| crate::result::KernelErrorSampling {
+            point_pairs: kernel_error::PAIRS,
+            standard_error: s.standard_error,
+        }),
         hierarchy: Some(h.stats()),
         timings,
         kept_squares,
