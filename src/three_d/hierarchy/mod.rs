@@ -5,10 +5,11 @@
 //! Instead of the whole Galerkin matrix of eq. (11), only the interactions that the refinement
 //! oracle ([`refine`]) asks for are built, as links between elements of per-surface quadtrees
 //! ([`tree`]) at whatever levels carry the transfer to within ε. A mesh is refined as one
-//! surface: its triangles are the leaves of a cluster tree ([`crate::three_d::cluster`]), and
-//! its pairs with the other surfaces (and itself) start from the tree's root and split
-//! clusters down to the triangles' elements where the oracle of [`clustered`] asks; links that
-//! stay between clusters carry the oriented point-to-point transfer. Solving alternates
+//! surface: its triangles are the leaves of a cluster tree ([`crate::three_d::cluster`]), a
+//! subtree of one tree over all the meshes, whose root is paired with itself and with each
+//! surface of one patch where the refinement starts; the oracle of [`clustered`] splits
+//! clusters down to the triangles' elements where it asks, and links that stay between
+//! clusters carry the oriented point-to-point transfer. Solving alternates
 //!
 //! 1. gather: H_R = Σ_links T_RS B_S over each element's links;
 //! 2. push-pull: H pushed down to the leaves, B = E + ρ H there, B pulled back up;
@@ -217,14 +218,15 @@ impl<'g> Hierarchy<'g> {
     }
 
     /// Links the scene to itself, refined against the current B: every ordered pair of the
-    /// document's surfaces, each a patch or the root of its mesh's cluster tree (a mesh also
-    /// with itself); two patches only when they face each other.
+    /// cluster tree's starts ([`crate::three_d::cluster::Clusters::starts`]: the surfaces of
+    /// one patch and the meshes' root; the root also with itself), two patches only when they
+    /// face each other.
     fn link_all(&mut self, progress: &dyn Progress) -> Result<(), Cancelled> {
         self.cluster_state = self.measure_clusters();
-        let roots = &self.clusters.roots;
+        let starts = &self.clusters.starts;
         let mut pairs = Vec::new();
-        for &a in roots {
-            for &b in roots {
+        for &a in starts {
+            for &b in starts {
                 let patches = !is_cluster(a) && !is_cluster(b);
                 if (patches && self.geo.facing(a as usize, b as usize))
                     || (!patches && (a != b || is_cluster(a)))
@@ -786,6 +788,7 @@ pub(crate) fn solve(
         refine_ms += ms(t);
         last = refined == 0;
     }
+
     timings.insert("refinement".into(), refine_ms);
     timings.insert("solve".into(), solve_ms);
     // the numbers count a covered part as B = E, H = 0; the images show the exposed part's
