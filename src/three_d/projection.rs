@@ -30,6 +30,8 @@ pub struct Geometry {
     pub(super) quads: Vec<Parallelogram>,
     /// The surfaces that may occlude a ray between two others ([`Bvh::occluders`]).
     pub(super) bvh: Bvh,
+    /// The thorough hull tests of [`visibility::any_occluder`] asked so far.
+    hulls: visibility::HullMemo,
 }
 
 impl Geometry {
@@ -37,6 +39,7 @@ impl Geometry {
         let quads: Vec<Parallelogram> = quads.iter().map(Parallelogram::of).collect();
         Geometry {
             bvh: Bvh::occluders(&quads),
+            hulls: visibility::HullMemo::new(),
             quads,
         }
     }
@@ -86,7 +89,7 @@ impl Geometry {
     /// pieces by the quick test and that of their whole surfaces by the thorough one
     /// ([`visibility::may_occlude`]).
     pub(super) fn unoccluded(&self, a: Piece, b: Piece) -> bool {
-        !visibility::any_occluder(&self.quads, &self.bvh, a, b)
+        !visibility::any_occluder(&self.quads, &self.bvh, &self.hulls, a, b)
     }
 
     /// [`Geometry::visibility`] over the exposed part of `a` only, where `covered` marks a

@@ -114,9 +114,27 @@ fn corners_of_pair(quads: &[Parallelogram], a: Piece, b: Piece) -> [V3; 8] {
 /// pieces `a` and `b`: the quick test of [`may_occlude`] on the pieces' hull for the surfaces
 /// in its bounding box, then the thorough one on their whole surfaces' hull, stopping at the
 /// first that passes both.
-pub(super) fn any_occluder(quads: &[Parallelogram], bvh: &Bvh, a: Piece, b: Piece) -> bool {
+pub(super) fn any_occluder(
+    quads: &[Parallelogram],
+    bvh: &Bvh,
+    memo: &HullMemo,
+    a: Piece,
+    b: Piece,
+) -> bool {
     let pts = corners_of_pair(quads, a, b);
     let whole = corners_of_pair(quads, Piece::whole(a.surface), Piece::whole(b.surface));
+    // the whole surfaces' test is the pieces' own when both are whole, and the same for
+    // every pair of pieces of the two surfaces otherwise: then it is kept
+    let pieces = a != Piece::whole(a.surface) || b != Piece::whole(b.surface);
+    let thorough = |k: usize| {
+        if pieces {
+            memo.get_or([a.surface, b.surface, k], || {
+                may_occlude(&whole, true, &quads[k])
+            })
+        } else {
+            may_occlude(&whole, true, &quads[k])
+        }
+    };
     let (mut lo, mut hi) = (pts[0], pts[0]);
     for p in &pts[1..] {
         for i in 0..3 {
@@ -137,8 +155,49 @@ pub(super) fn any_occluder(quads: &[Parallelogram], bvh: &Bvh, a: Piece, b: Piec
             || (k != a.surface
                 && k != b.surface
                 && may_occlude(&pts, false, &quads[k])
-                && may_occlude(&whole, true, &quads[k]))
+                && thorough(k))
     })
+}
+
+/// The thorough hull test of [`any_occluder`] on two whole surfaces and an occluder, kept
+/// per triple: a refinement asks it again for every pair of pieces of the same two surfaces
+/// (in a room with 3 × 3 boxes it was a quarter of the job). Sharded so that the judging
+/// threads seldom wait on one another, and bounded: a shard stops keeping new answers at
+/// [`HullMemo::SHARD_LIMIT`] (a scene of 10⁵ triangles asks about millions of triples, most
+/// of them once).
+#[derive(Debug)]
+pub(crate) struct HullMemo {
+    shards: Vec<std::sync::Mutex<rustc_hash::FxHashMap<[usize; 3], bool>>>,
+}
+
+impl HullMemo {
+    const SHARDS: usize = 64;
+    const SHARD_LIMIT: usize = 1 << 12;
+
+    pub(crate) fn new() -> HullMemo {
+        HullMemo {
+            shards: (0..Self::SHARDS).map(|_| Default::default()).collect(),
+        }
+    }
+
+    /// The kept answer for `key`, else `test()`, kept while its shard has room.
+    fn get_or(&self, key: [usize; 3], test: impl FnOnce() -> bool) -> bool {
+        let h = key[0]
+            .wrapping_mul(0x9e37_79b9_7f4a_7c15)
+            .wrapping_add(key[1].wrapping_mul(0xc2b2_ae3d_27d4_eb4f))
+            .wrapping_add(key[2]);
+        let shard = &self.shards[(h >> 7) % Self::SHARDS];
+        let lock = || shard.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(&known) = lock().get(&key) {
+            return known;
+        }
+        let answer = test();
+        let mut kept = lock();
+        if kept.len() < Self::SHARD_LIMIT {
+            kept.insert(key, answer);
+        }
+        answer
+    }
 }
 
 /// The most surfaces in a pair's box that [`any_occluder`] tests; beyond them it answers
@@ -430,6 +489,31 @@ mod tests {
         }
     }
 
+    /// The memo of the thorough hull test answers a triple once from the test and then from
+    /// what it kept, and a full shard still answers (by testing again).
+    #[test]
+    fn the_hull_memo_tests_each_triple_once_while_it_has_room() {
+        let memo = HullMemo::new();
+        let calls = std::cell::Cell::new(0);
+        let test = |answer: bool| {
+            calls.set(calls.get() + 1);
+            answer
+        };
+        assert!(memo.get_or([1, 2, 3], || test(true)));
+        assert!(memo.get_or([1, 2, 3], || test(false)));
+        assert!(!memo.get_or([2, 1, 3], || test(false)));
+        assert_eq!(calls.get(), 2);
+        for k in 0..HullMemo::SHARDS * HullMemo::SHARD_LIMIT + 1000 {
+            memo.get_or([7, 8, k], || k % 2 == 0);
+        }
+        let kept: usize = memo.shards.iter().map(|s| s.lock().unwrap().len()).sum();
+        assert!(kept <= HullMemo::SHARDS * HullMemo::SHARD_LIMIT);
+        let before = calls.get();
+        let far = HullMemo::SHARDS * HullMemo::SHARD_LIMIT + 999;
+        assert!(!memo.get_or([7, 8, far], || test(false)));
+        assert!(calls.get() <= before + 1);
+    }
+
     #[test]
     fn hull_test_is_conservative_and_clears_room_walls() {
         // floor, ceiling, a blocker between them, a wall beside them and one far away
@@ -450,11 +534,18 @@ mod tests {
         assert!(any_occluder(
             &quads,
             &Bvh::occluders(&quads),
+            &HullMemo::new(),
             whole0,
             whole1
         ));
         let open = [floor, ceiling, wall, far];
-        assert!(!any_occluder(&open, &Bvh::occluders(&open), whole0, whole1));
+        assert!(!any_occluder(
+            &open,
+            &Bvh::occluders(&open),
+            &HullMemo::new(),
+            whole0,
+            whole1
+        ));
         let bvh = Bvh::new(&quads);
         let mut rays = 0;
         let v = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 8, 7, &mut rays).whole;
