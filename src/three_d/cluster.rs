@@ -235,11 +235,58 @@ pub struct Clusters {
     pub(super) centres: Vec<V3>,
 }
 
-/// What the tree over the groups is built from.
+/// What the tree over the groups is built from: the patches, and per group its area, its
+/// area-weighted centroid, its diameter and its largest patch's, each taken once.
 struct Scene<'a> {
     quads: &'a [Parallelogram],
     centres: &'a [V3],
     groups: &'a [Vec<u32>],
+    area: Vec<f64>,
+    centre: Vec<V3>,
+    diameter: Vec<f64>,
+    member_diameter: Vec<f64>,
+}
+
+/// Where a cluster's items (patches, or groups of them) are halved: the largest, of
+/// `largest` = (its index, its diameter), split off alone at the front when it is half the
+/// box and half the area; else the items are ordered about the median of their centres
+/// along the longest side of the centres' box (ties by the item) and halved there.
+fn halve(
+    items: &mut [u32],
+    largest: (usize, f64),
+    box_diameter: f64,
+    total_area: f64,
+    area: impl Fn(u32) -> f64,
+    centre: impl Fn(u32) -> V3,
+) -> usize {
+    let (big, size) = largest;
+    if size >= PEEL * box_diameter && area(items[big]) >= PEEL * total_area {
+        items.swap(0, big);
+        return 1;
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for &m in items.iter() {
+        let c = centre(m);
+        for a in 0..3 {
+            lo[a] = lo[a].min(c[a]);
+            hi[a] = hi[a].max(c[a]);
+        }
+    }
+    let axis = (0..3)
+        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+        .unwrap_or(0);
+    let mid = items.len() / 2;
+    items.select_nth_unstable_by(mid, |&a, &b| {
+        centre(a)[axis].total_cmp(&centre(b)[axis]).then(a.cmp(&b))
+    });
+    mid
+}
+
+/// The index and value of the first largest of `values`.
+fn largest(values: impl Iterator<Item = f64>) -> (usize, f64) {
+    values
+        .enumerate()
+        .fold((0, 0.0), |b, x| if x.1 > b.1 { x } else { b })
 }
 
 /// A member with at least this share of its cluster's diameter and of its area is a child
@@ -273,18 +320,46 @@ impl Clusters {
         let mut order = vec![0; groups.iter().map(Vec::len).sum()];
         tree.roots = vec![0; groups.len()];
         // surfaces of one patch first, each its own root; then the meshes under one tree
-        let (mut meshes, singles): (Vec<usize>, Vec<usize>) =
-            (0..groups.len()).partition(|&g| groups[g].len() > 1);
+        let (mut meshes, singles): (Vec<u32>, Vec<u32>) =
+            (0..groups.len() as u32).partition(|&g| groups[g as usize].len() > 1);
         for (k, &g) in singles.iter().enumerate() {
+            let g = g as usize;
             order[k] = groups[g][0];
             tree.roots[g] = groups[g][0];
             tree.starts.push(groups[g][0]);
         }
         if !meshes.is_empty() {
+            let area: Vec<f64> = groups
+                .iter()
+                .map(|g| g.iter().map(|&m| quads[m as usize].area).sum())
+                .collect();
             let scene = Scene {
                 quads,
                 centres: &centres,
                 groups,
+                centre: groups
+                    .iter()
+                    .zip(&area)
+                    .map(|(g, a)| {
+                        let sum = g.iter().fold([0.0; 3], |s, &m| {
+                            add(s, scale(centres[m as usize], quads[m as usize].area))
+                        });
+                        scale(sum, 1.0 / a)
+                    })
+                    .collect(),
+                diameter: groups
+                    .iter()
+                    .map(|g| Bound::of_patches(quads, g).diameter())
+                    .collect(),
+                member_diameter: groups
+                    .iter()
+                    .map(|g| {
+                        g.iter()
+                            .map(|&m| quads[m as usize].diameter())
+                            .fold(0.0, f64::max)
+                    })
+                    .collect(),
+                area,
             };
             let top = tree.build_top(&scene, &mut meshes, &mut order, singles.len() as u32);
             tree.starts.push(top);
@@ -304,83 +379,50 @@ impl Clusters {
     /// are, a group as large as half the box and half the area split off alone (a room's
     /// floor), else the groups halved at the median of their centroids along the longest
     /// side of the centroids' box.
-    fn build_top(
-        &mut self,
-        scene: &Scene,
-        ids: &mut [usize],
-        order: &mut [u32],
-        start: u32,
-    ) -> u32 {
+    fn build_top(&mut self, scene: &Scene, ids: &mut [u32], order: &mut [u32], start: u32) -> u32 {
         let (quads, groups) = (scene.quads, scene.groups);
         if let [g] = ids {
-            let members = &mut order[start as usize..start as usize + groups[*g].len()];
-            members.copy_from_slice(&groups[*g]);
+            let g = *g as usize;
+            let members = &mut order[start as usize..start as usize + groups[g].len()];
+            members.copy_from_slice(&groups[g]);
             let root = self.build(quads, scene.centres, members, start);
-            self.roots[*g] = root;
+            self.roots[g] = root;
             return root;
         }
-        let area = |g: usize| {
-            groups[g]
-                .iter()
-                .map(|&m| quads[m as usize].area)
-                .sum::<f64>()
-        };
-        let centre = |g: usize| {
-            let sum = groups[g].iter().fold([0.0; 3], |s, &m| {
-                add(s, scale(scene.centres[m as usize], quads[m as usize].area))
-            });
-            scale(sum, 1.0 / area(g))
-        };
         let all: Vec<u32> = ids
             .iter()
-            .flat_map(|&g| groups[g].iter().copied())
+            .flat_map(|&g| groups[g as usize].iter().copied())
             .collect();
         let bound = Bound::of_patches(quads, &all);
-        let total: f64 = ids.iter().map(|&g| area(g)).sum();
-        let (big, size) = ids
-            .iter()
-            .enumerate()
-            .map(|(k, &g)| (k, Bound::of_patches(quads, &groups[g]).diameter()))
-            .fold((0, 0.0), |b, x| if x.1 > b.1 { x } else { b });
+        let total: f64 = ids.iter().map(|&g| scene.area[g as usize]).sum();
+        let weighted = ids.iter().fold([0.0; 3], |s, &g| {
+            add(s, scale(scene.centre[g as usize], scene.area[g as usize]))
+        });
         let me = self.nodes.len();
         self.nodes.push(Cluster {
             bound,
             members: (start, start + all.len() as u32),
             children: [0; 2],
             area: total,
-            centre: scale(
-                ids.iter()
-                    .fold([0.0; 3], |s, &g| add(s, scale(centre(g), area(g)))),
-                1.0 / total,
-            ),
-            member_diameter: all
+            centre: scale(weighted, 1.0 / total),
+            member_diameter: ids
                 .iter()
-                .map(|&m| quads[m as usize].diameter())
+                .map(|&g| scene.member_diameter[g as usize])
                 .fold(0.0, f64::max),
         });
-        let half = if size >= PEEL * bound.diameter() && area(ids[big]) >= PEEL * total {
-            ids.swap(0, big);
-            1
-        } else {
-            let centres: Vec<(usize, V3)> = ids.iter().map(|&g| (g, centre(g))).collect();
-            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-            for (_, c) in &centres {
-                for a in 0..3 {
-                    lo[a] = lo[a].min(c[a]);
-                    hi[a] = hi[a].max(c[a]);
-                }
-            }
-            let axis = (0..3)
-                .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
-                .unwrap_or(0);
-            let at: std::collections::HashMap<usize, f64> =
-                centres.iter().map(|&(g, c)| (g, c[axis])).collect();
-            let mid = ids.len() / 2;
-            ids.select_nth_unstable_by(mid, |&a, &b| at[&a].total_cmp(&at[&b]).then(a.cmp(&b)));
-            mid
-        };
+        let half = halve(
+            ids,
+            largest(ids.iter().map(|&g| scene.diameter[g as usize])),
+            bound.diameter(),
+            total,
+            |g| scene.area[g as usize],
+            |g| scene.centre[g as usize],
+        );
         let (left, right) = ids.split_at_mut(half);
-        let count = left.iter().map(|&g| groups[g].len()).sum::<usize>() as u32;
+        let count = left
+            .iter()
+            .map(|&g| groups[g as usize].len())
+            .sum::<usize>() as u32;
         let a = self.build_top(scene, left, order, start);
         let b = self.build_top(scene, right, order, start + count);
         self.nodes[me].children = [a, b];
@@ -405,12 +447,7 @@ impl Clusters {
             }),
             1.0 / area,
         );
-        // the largest member, split off alone when it is half the box and half the area
-        let (big, size) = members
-            .iter()
-            .enumerate()
-            .map(|(k, &m)| (k, quads[m as usize].diameter()))
-            .fold((0, 0.0), |b, x| if x.1 > b.1 { x } else { b });
+        let (big, size) = largest(members.iter().map(|&m| quads[m as usize].diameter()));
         let me = self.nodes.len();
         self.nodes.push(Cluster {
             bound,
@@ -420,29 +457,14 @@ impl Clusters {
             centre,
             member_diameter: size,
         });
-        let dominant = quads[members[big] as usize].area >= PEEL * area;
-        let half = if size >= PEEL * bound.diameter() && dominant {
-            members.swap(0, big);
-            1
-        } else {
-            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-            for &m in members.iter() {
-                for a in 0..3 {
-                    lo[a] = lo[a].min(centres[m as usize][a]);
-                    hi[a] = hi[a].max(centres[m as usize][a]);
-                }
-            }
-            let axis = (0..3)
-                .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
-                .unwrap_or(0);
-            let mid = members.len() / 2;
-            members.select_nth_unstable_by(mid, |&a, &b| {
-                centres[a as usize][axis]
-                    .total_cmp(&centres[b as usize][axis])
-                    .then(a.cmp(&b))
-            });
-            mid
-        };
+        let half = halve(
+            members,
+            (big, size),
+            bound.diameter(),
+            area,
+            |m| quads[m as usize].area,
+            |m| centres[m as usize],
+        );
         let (left, right) = members.split_at_mut(half);
         let a = self.build(quads, centres, left, start);
         let b = self.build(quads, centres, right, start + half as u32);

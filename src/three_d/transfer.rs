@@ -570,7 +570,7 @@ impl Ctx<'_> {
 /// front normals nx, ny; zero unless y is in front of x and x in front of y. Without a branch
 /// (the cosines clamped at zero), so that the loops over sample points vectorise.
 #[inline(always)]
-fn kernel(x: V3, nx: V3, y: V3, ny: V3) -> f64 {
+pub(super) fn kernel(x: V3, nx: V3, y: V3, ny: V3) -> f64 {
     let r = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
     let cx = (r[0] * nx[0] + r[1] * nx[1] + r[2] * nx[2]).max(0.0);
     let cy = (-(r[0] * ny[0] + r[1] * ny[1] + r[2] * ny[2])).max(0.0);

@@ -368,7 +368,7 @@ pub(crate) fn visible_fraction(
 /// The point (s, t) of piece `p` at (u, v) of its unit square: on a triangle piece, the
 /// square folded onto the triangle along its diagonal (uniform on the triangle).
 #[inline(always)]
-fn at(q: &Parallelogram, p: &Piece, u: f64, v: f64) -> (f64, f64) {
+pub(super) fn at(q: &Parallelogram, p: &Piece, u: f64, v: f64) -> (f64, f64) {
     if q.tri {
         let (u, v) = if u + v > 1.0 {
             (1.0 - u, 1.0 - v)

@@ -950,39 +950,11 @@ mod tests {
     /// A cluster link's kernel ([`Hierarchy::cluster_link_kernel`], what eq. (5) samples),
     /// applied to its source's members' B, is the transfer the link makes: exactly (to
     /// rounding) for a source seen as its intensity, and for an affine source of one member.
-    /// A corner of a room under a meshed ceiling, after one solve, has links of both kinds.
+    /// The corner of a room under a meshed ceiling of the solver's tests, after one solve, has
+    /// links of both kinds.
     #[test]
     fn a_cluster_links_kernel_applied_to_its_members_b_is_its_transfer() {
-        let n = 4;
-        let positions: Vec<[f64; 3]> = (0..=n)
-            .flat_map(|j| (0..=n).map(move |i| [i as f64, 2.0, j as f64]))
-            .collect();
-        let triangles: Vec<[usize; 3]> = (0..n)
-            .flat_map(|j| {
-                (0..n).flat_map(move |i| {
-                    let a = j * (n + 1) + i;
-                    [[a, a + 1, a + n + 2], [a, a + n + 2, a + n + 1]]
-                })
-            })
-            .collect();
-        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
-            {"name": "ceiling", "mesh": {"positions": positions, "triangles": triangles},
-             "reflectance": 0.7},
-            {"name": "floor", "corners": [[0, 0, 0], [0, 0, 4], [4, 0, 4], [4, 0, 0]],
-             "reflectance": [0.7, 0.5, 0.3]},
-            {"name": "wall", "corners": [[0, 0, 0], [0, 2, 0], [0, 2, 4], [0, 0, 4]],
-             "reflectance": 0.6},
-            {"name": "light", "corners": [[1, 1.9, 1], [3, 1.9, 1], [3, 1.9, 3], [1, 1.9, 3]],
-             "reflectance": 0.0, "emission": 1.0}]},
-            "solver": {"method": "hierarchical"}});
-        let quads = match crate::scene::parse_value(&doc, &crate::scene::Limits::default())
-            .unwrap()
-            .scene
-            .kind
-        {
-            crate::scene::SceneKind::ThreeD(scene) => scene.patches,
-            _ => unreachable!(),
-        };
+        let quads = super::super::tests::corner_under_a_meshed_ceiling();
         let geo = crate::three_d::projection::Geometry::new(&quads);
         let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(0.25), None);
         let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3);

@@ -30,8 +30,9 @@ use super::Hierarchy;
 use crate::math::basis::legendre;
 use crate::three_d::bvh::Bvh;
 use crate::three_d::cluster::is_cluster;
-use crate::three_d::geometry::{dot, norm, quad_quad, sub, V3};
-use crate::three_d::visibility::{pair_seed, SplitMix};
+use crate::three_d::geometry::{norm, quad_quad, sub, Piece, V3};
+use crate::three_d::transfer;
+use crate::three_d::visibility::{self, pair_seed, SplitMix};
 use rayon::prelude::*;
 use std::collections::BTreeSet;
 
@@ -205,37 +206,16 @@ impl Hierarchy<'_> {
     /// A point uniform by area on a link's end.
     fn point_of(&self, end: u32, rng: &mut SplitMix) -> At {
         let (u, v) = (rng.next_f64(), rng.next_f64());
-        if is_cluster(end) {
+        let (member, piece) = if is_cluster(end) {
             let member = self.clusters.pick(end, rng.next_f64());
-            let q = &self.geo.quads[member];
-            let (s, t) = if q.tri && u + v > 1.0 {
-                (1.0 - u, 1.0 - v)
-            } else {
-                (u, v)
-            };
-            return At {
-                member: member as u32,
-                st: (s, t),
-                x: q.at(s, t),
-            };
-        }
-        let p = self.elements[end as usize].piece;
-        let q = &self.geo.quads[p.surface];
-        let (s, t) = if q.tri {
-            let (u, v) = if u + v > 1.0 {
-                (1.0 - u, 1.0 - v)
-            } else {
-                (u, v)
-            };
-            p.at_local(u, v)
+            (member as u32, Piece::whole(member))
         } else {
-            (
-                p.s[0] + u * (p.s[1] - p.s[0]),
-                p.t[0] + v * (p.t[1] - p.t[0]),
-            )
+            (end, self.elements[end as usize].piece)
         };
+        let q = &self.geo.quads[piece.surface];
+        let (s, t) = visibility::at(q, &piece, u, v);
         At {
-            member: end,
+            member,
             st: (s, t),
             x: q.at(s, t),
         }
@@ -247,16 +227,12 @@ impl Hierarchy<'_> {
             self.elements[a.member as usize].piece.surface,
             self.elements[b.member as usize].piece.surface,
         );
-        let (qa, qb) = (&self.geo.quads[pa], &self.geo.quads[pb]);
-        let d = sub(b.x, a.x);
-        let (ca, cb, r2) = (dot(qa.n, d), -dot(qb.n, d), dot(d, d));
-        if ca <= 0.0 || cb <= 0.0 || r2 <= 0.0 {
+        let k = transfer::kernel(a.x, self.geo.quads[pa].n, b.x, self.geo.quads[pb].n);
+        // (NaN when the two points coincide, 0 / 0)
+        if k.is_nan() || k <= 0.0 || self.geo.bvh.occluded(a.x, b.x, [pa, pb]) {
             return 0.0;
         }
-        if self.geo.bvh.occluded(a.x, b.x, [pa, pb]) {
-            return 0.0;
-        }
-        ca * cb / (std::f64::consts::PI * r2 * r2)
+        k
     }
 
     /// An element link's kernel at (x, y): Σ_ab T_ab ψ_a(x) ψ_b(y).
@@ -502,11 +478,7 @@ mod tests {
                 }
                 for (x, wx) in parts(a) {
                     for (y, wy) in parts(b) {
-                        let d = sub(y, x);
-                        let (ca, cb, r2) = (dot(a.n, d), -dot(b.n, d), dot(d, d));
-                        if ca > 0.0 && cb > 0.0 {
-                            total += wx * wy * (ca * cb / (std::f64::consts::PI * r2 * r2)).powi(2);
-                        }
+                        total += wx * wy * transfer::kernel(x, a.n, y, b.n).powi(2);
                     }
                 }
             }

@@ -916,6 +916,21 @@ mod tests {
         serde_json::json!({"positions": positions, "triangles": triangles})
     }
 
+    /// A corner of a 4 × 4 m room (a floor and one wall of parallelograms) under the meshed
+    /// [`ceiling`], lit by a light hung just below it: links of every kind, element and
+    /// cluster, affine and not.
+    pub(super) fn corner_under_a_meshed_ceiling() -> Vec<Quad> {
+        patches(&serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "ceiling", "mesh": ceiling(), "reflectance": 0.7},
+            {"name": "floor", "corners": [[0, 0, 0], [0, 0, 4], [4, 0, 4], [4, 0, 0]],
+             "reflectance": [0.7, 0.5, 0.3]},
+            {"name": "wall", "corners": [[0, 0, 0], [0, 2, 0], [0, 2, 4], [0, 0, 4]],
+             "reflectance": 0.6},
+            {"name": "light", "corners": [[1, 1.9, 1], [3, 1.9, 1], [3, 1.9, 3], [1, 1.9, 3]],
+             "reflectance": 0.0, "emission": 1.0}]},
+            "solver": {"method": "hierarchical"}}))
+    }
+
     /// The patches of a 3D job document.
     fn patches(doc: &serde_json::Value) -> Vec<Quad> {
         let job = crate::scene::parse_value(doc, &crate::scene::Limits::default()).unwrap();
@@ -966,16 +981,7 @@ mod tests {
     /// 1e-12; every element's B agrees to 1e-9 of the largest.
     #[test]
     fn gauss_seidel_reaches_the_jacobi_fixed_point_in_fewer_sweeps() {
-        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
-            {"name": "ceiling", "mesh": ceiling(), "reflectance": 0.7},
-            {"name": "floor", "corners": [[0, 0, 0], [0, 0, 4], [4, 0, 4], [4, 0, 0]],
-             "reflectance": [0.7, 0.5, 0.3]},
-            {"name": "wall", "corners": [[0, 0, 0], [0, 2, 0], [0, 2, 4], [0, 0, 4]],
-             "reflectance": 0.6},
-            {"name": "light", "corners": [[1, 1.9, 1], [3, 1.9, 1], [3, 1.9, 3], [1, 1.9, 3]],
-             "reflectance": 0.0, "emission": 1.0}]},
-            "solver": {"method": "hierarchical"}});
-        let quads = &patches(&doc);
+        let quads = &corner_under_a_meshed_ceiling();
         let geo = Geometry::new(quads);
         let solve = |gauss_seidel: bool| {
             let sizing = Sizing::new(&geo.quads, Some(0.25), None);
