@@ -73,6 +73,36 @@ fn assert_within(c: &Comparison, walls: f64, faces: f64) {
     }
 }
 
+/// The reference's tree of boxes (the `bvh` crate) finds, for every ray, the same nearest
+/// patch at the same distance as testing every patch: on the gallery's meshes on a floor
+/// (walls, a box of parallelograms and three meshes), 20 000 rays from points on random
+/// patches in random directions.
+#[test]
+fn the_references_tree_finds_every_nearest_hit() {
+    use rand::Rng;
+    let tracer = Tracer::new(&scene_file("gallery/meshes-on-a-floor"));
+    let mut rng = SmallRng::seed_from_u64(7);
+    let mut hits = 0;
+    for _ in 0..20_000 {
+        let on = rng.random_range(0..tracer.quads.len());
+        let q = &tracer.quads[on];
+        let (mut s, mut t) = (rng.random::<f64>(), rng.random::<f64>());
+        if q.tri && s + t > 1.0 {
+            (s, t) = (1.0 - s, 1.0 - t);
+        }
+        let o = q.at(s, t);
+        let d: V3 = [0, 1, 2].map(|_| rng.random::<f64>() * 2.0 - 1.0);
+        let len = tracer::dot(d, d).sqrt();
+        let dir = tracer::scale(d, 1.0 / len);
+        let tree = tracer.nearest(o, dir, on);
+        let brute = tracer.nearest_by_brute_force(o, dir, on);
+        assert_eq!(tree, brute, "ray from {o:?} along {dir:?}");
+        hits += usize::from(tree.is_some());
+    }
+    // the rays leave the patches both ways, so about half find something
+    assert!(hits > 5_000, "{hits} hits");
+}
+
 #[test]
 fn the_reference_passes_the_furnace() {
     // every face of a closed cube emits 1 and reflects 0.5: B = 2 everywhere

@@ -1,13 +1,20 @@
 //! An independent Monte Carlo reference for the 3D solvers.
 //!
-//! It shares no code with the library: it reads the scene's JSON itself, intersects rays with
-//! the parallelograms by brute force, and estimates the radiosity equation
+//! It shares no code with the library: it reads the scene's JSON itself, finds the surfaces a
+//! ray may meet with the `bvh` crate's tree over their boxes (not the library's own tree) and
+//! meets them with its own ray–parallelogram test, and estimates the radiosity equation
 //! B(x) = E(x) + ρ(x) ∫ B(y) cosθx cosθy / (π r²) V(x, y) dA_y by path tracing with next-event
-//! estimation (a light point sampled on every emitter at every vertex) and Russian roulette.
+//! estimation (at every vertex a light point on every emitting document surface, on one of its
+//! patches drawn by area) and Russian roulette.
 //! It returns cell means on the same `grid × grid` split as the result, each with its standard
 //! error, so that a comparison can tell a real difference from sampling noise.
 #![allow(dead_code)]
 
+use bvh::aabb::{Aabb, Bounded};
+use bvh::bounding_hierarchy::BHShape;
+use bvh::bvh::Bvh;
+use bvh::ray::Ray;
+use nalgebra::{Point3, Vector3};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
@@ -166,30 +173,128 @@ pub fn quads(doc: &Value) -> Vec<Quad> {
 
 pub struct Tracer {
     pub quads: Vec<Quad>,
-    pub emitters: Vec<usize>,
+    /// Per emitting document surface: its patches and their cumulative shares of its area.
+    pub emitters: Vec<(Vec<usize>, Vec<f64>)>,
     /// A length far below any feature of the scene, to step off surfaces.
     pub eps: f64,
+    boxes: Vec<Patch>,
+    tree: Bvh<f64, 3>,
+}
+
+/// A patch's box in the `bvh` crate's tree.
+struct Patch {
+    index: usize,
+    bounds: Aabb<f64, 3>,
+    node: usize,
+}
+
+impl Bounded<f64, 3> for Patch {
+    fn aabb(&self) -> Aabb<f64, 3> {
+        self.bounds
+    }
+}
+
+impl BHShape<f64, 3> for Patch {
+    fn set_bh_node_index(&mut self, index: usize) {
+        self.node = index;
+    }
+    fn bh_node_index(&self) -> usize {
+        self.node
+    }
 }
 
 impl Tracer {
     pub fn new(doc: &Value) -> Tracer {
         let quads = quads(doc);
-        let emitters = (0..quads.len())
-            .filter(|&i| quads[i].emission.iter().any(|&e| e > 0.0))
-            .collect();
+        let mut emitters: Vec<(Vec<usize>, Vec<f64>)> = Vec::new();
+        let mut last_owner = usize::MAX;
+        for (i, q) in quads.iter().enumerate() {
+            if !q.emission.iter().any(|&e| e > 0.0) {
+                continue;
+            }
+            if q.owner != last_owner {
+                emitters.push((Vec::new(), Vec::new()));
+                last_owner = q.owner;
+            }
+            emitters.last_mut().unwrap().0.push(i);
+        }
+        for (patches, cumulative) in &mut emitters {
+            let total: f64 = patches.iter().map(|&i| quads[i].area).sum();
+            let mut acc = 0.0;
+            for &i in patches.iter() {
+                acc += quads[i].area / total;
+                cumulative.push(acc);
+            }
+        }
         let size = quads
             .iter()
             .map(|q| dot(q.e1, q.e1).max(dot(q.e2, q.e2)).sqrt())
             .fold(0.0, f64::max);
+        let eps = 1e-9 * size;
+        let mut boxes: Vec<Patch> = quads
+            .iter()
+            .enumerate()
+            .map(|(index, q)| {
+                let far = if q.tri {
+                    q.p0
+                } else {
+                    add(q.p0, add(q.e1, q.e2))
+                };
+                let corners = [q.p0, add(q.p0, q.e1), add(q.p0, q.e2), far];
+                let lo = [0, 1, 2].map(|k| corners.iter().map(|c| c[k]).fold(f64::MAX, f64::min));
+                let hi = [0, 1, 2].map(|k| corners.iter().map(|c| c[k]).fold(f64::MIN, f64::max));
+                // a flat patch's box has no depth along its normal: widen it a little so that
+                // no ray slips past a box of zero thickness
+                let pad = 1e3 * eps;
+                Patch {
+                    index,
+                    bounds: Aabb::with_bounds(
+                        Point3::new(lo[0] - pad, lo[1] - pad, lo[2] - pad),
+                        Point3::new(hi[0] + pad, hi[1] + pad, hi[2] + pad),
+                    ),
+                    node: 0,
+                }
+            })
+            .collect();
+        let tree = Bvh::build(&mut boxes);
         Tracer {
             quads,
             emitters,
-            eps: 1e-9 * size,
+            eps,
+            boxes,
+            tree,
         }
     }
 
     /// The nearest surface the ray from `o` along the unit `dir` meets, other than `skip`.
     pub fn nearest(&self, o: V3, dir: V3, skip: usize) -> Option<(usize, f64)> {
+        let ray = Ray::new(Point3::from(o), Vector3::from(dir));
+        let mut best: Option<(usize, f64)> = None;
+        // the boxes come nearest entry first: once one is entered beyond the best hit, no
+        // later one can hold a nearer hit
+        for p in self.tree.nearest_traverse_iterator(&ray, &self.boxes) {
+            if let (Some((_, b)), Some((enter, _))) =
+                (best, ray.intersection_slice_for_aabb(&p.bounds))
+            {
+                if enter > b {
+                    break;
+                }
+            }
+            let i = p.index;
+            if i == skip {
+                continue;
+            }
+            if let Some(h) = self.quads[i].hit(o, dir) {
+                if h > self.eps && best.is_none_or(|(_, b)| h < b) {
+                    best = Some((i, h));
+                }
+            }
+        }
+        best
+    }
+
+    /// [`Tracer::nearest`] by testing every patch: the tree's check.
+    pub fn nearest_by_brute_force(&self, o: V3, dir: V3, skip: usize) -> Option<(usize, f64)> {
         let mut best: Option<(usize, f64)> = None;
         for (i, q) in self.quads.iter().enumerate() {
             if i == skip {
@@ -209,19 +314,33 @@ impl Tracer {
         let d = sub(y, x);
         let len = dot(d, d).sqrt();
         let dir = scale(d, 1.0 / len);
-        self.quads.iter().enumerate().any(|(i, q)| {
+        let ray = Ray::new(Point3::from(x), Vector3::from(dir));
+        self.tree.traverse_iterator(&ray, &self.boxes).any(|p| {
+            let i = p.index;
             i != a
                 && i != b
-                && q.hit(x, dir)
+                && self.quads[i]
+                    .hit(x, dir)
                     .is_some_and(|h| h > self.eps && h < len - self.eps)
         })
     }
 
-    /// Irradiance / π from every emitter at x on surface `on`, one light sample each.
+    /// Irradiance / π from every emitting surface at x on patch `on`: one light point each,
+    /// on one of its patches drawn by area (a parallelogram's only patch draws no number).
     pub fn direct(&self, x: V3, on: usize, rng: &mut SmallRng) -> V3 {
         let n = self.quads[on].n;
         let mut sum = [0.0; 3];
-        for &l in &self.emitters {
+        for (patches, cumulative) in &self.emitters {
+            let (l, share) = if patches.len() == 1 {
+                (patches[0], 1.0)
+            } else {
+                let u = rng.random::<f64>();
+                let at = cumulative
+                    .partition_point(|&c| c < u)
+                    .min(patches.len() - 1);
+                let below = if at == 0 { 0.0 } else { cumulative[at - 1] };
+                (patches[at], cumulative[at] - below)
+            };
             if l == on {
                 continue;
             }
@@ -243,7 +362,7 @@ impl Tracer {
             if cx <= 0.0 || cy <= 0.0 || self.blocked(x, y, on, l) {
                 continue;
             }
-            let area = q.area * (rs[1] - rs[0]) * (rt[1] - rt[0]);
+            let area = q.area * (rs[1] - rs[0]) * (rt[1] - rt[0]) / share;
             let g = cx * cy / (std::f64::consts::PI * r2 * r2) * area;
             sum = add(sum, scale(q.emission, g));
         }
