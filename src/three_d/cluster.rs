@@ -492,6 +492,17 @@ impl Clusters {
         let (a, b) = self.get(reference).members;
         &self.order[a as usize..b as usize]
     }
+
+    /// Where cluster `reference`'s members lie in [`Clusters::order`].
+    pub(super) fn span(&self, reference: u32) -> std::ops::Range<usize> {
+        let (a, b) = self.get(reference).members;
+        a as usize..b as usize
+    }
+
+    /// Every patch under a tree, each cluster's members one run of it.
+    pub(super) fn order(&self) -> &[u32] {
+        &self.order
+    }
 }
 
 /// Whether `reference` names a cluster rather than an element.

@@ -31,9 +31,9 @@
 
 use super::Hierarchy;
 use crate::scene::Rgb;
-use crate::three_d::cluster::{is_cluster, Bound};
+use crate::three_d::cluster::{is_cluster, Bound, Clusters};
 use crate::three_d::cover::{Exposure, Partial};
-use crate::three_d::geometry::{add, dot, norm, scale, sub, V3};
+use crate::three_d::geometry::{add, dot, norm, scale, sub, Parallelogram, V3};
 use crate::three_d::visibility::{pair_seed, unseen_bound, SplitMix};
 use rayon::prelude::*;
 
@@ -111,6 +111,29 @@ struct Emitter {
     /// P_k per channel, as the six entries of a symmetric matrix ([`sym`]).
     second: [[Sym; 3]; 3],
     second_offset: [Sym; 3],
+}
+
+/// A patch under the cluster tree as the clusters' transfer reads it: laid out in
+/// [`crate::three_d::cluster::Clusters::order`], so that the members of a cluster are one run
+/// of memory, which each sweep reads once per cluster link.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Member {
+    centre: V3,
+    normal: V3,
+    area: f64,
+}
+
+/// The [`Member`]s of every cluster, in the clusters' order.
+pub(super) fn members(clusters: &Clusters, quads: &[Parallelogram]) -> Vec<Member> {
+    clusters
+        .order()
+        .iter()
+        .map(|&p| Member {
+            centre: clusters.centres[p as usize],
+            normal: quads[p as usize].n,
+            area: quads[p as usize].area,
+        })
+        .collect()
 }
 
 /// A symmetric 3 × 3 matrix: xx, yy, zz, xy, xz, yz.
@@ -316,9 +339,12 @@ impl Hierarchy<'_> {
     /// elements of its patches), or for the element itself.
     fn for_members(&self, id: u32, mut f: impl FnMut(u32, f64, V3, V3)) {
         if is_cluster(id) {
-            for &p in self.clusters.members(id) {
-                let q = &self.geo.quads[p as usize];
-                f(p, q.area, self.clusters.centres[p as usize], q.n);
+            let span = self.clusters.span(id);
+            for (&p, m) in self.clusters.order()[span.clone()]
+                .iter()
+                .zip(&self.members[span])
+            {
+                f(p, m.area, m.centre, m.normal);
             }
         } else {
             let el = &self.elements[id as usize];
@@ -591,7 +617,13 @@ impl Hierarchy<'_> {
 
     /// The constant H (as h₀ = H √A) that cluster link `l` delivers to each member of its
     /// receiver, each at its own centroid, into `out` (one slot per member, in their order).
-    fn cluster_link_irradiance(&self, l: &ClusterLink, emitters: &[Emitter], out: &mut [Rgb]) {
+    fn cluster_link_irradiance(
+        &self,
+        l: &ClusterLink,
+        emitters: &[Emitter],
+        b0: &[Rgb],
+        out: &mut [Rgb],
+    ) {
         let v = l.visibility;
         let centre = self.centre_of(l.src);
         let mut slots = out.iter_mut();
@@ -623,15 +655,23 @@ impl Hierarchy<'_> {
         let toward = sub(self.centre_of(l.recv), centre);
         let omega = scale(toward, 1.0 / norm(toward));
         let mut intensity = [0.0; 3];
-        self.for_members(l.src, |e, area, _, n| {
+        let mut add_member = |b: &Rgb, area: f64, n: V3| {
             let c = dot(n, omega);
             if c > 0.0 {
                 // B̄ A = b₀ √A in the orthonormal basis
-                let b = self.elements[e as usize].b[0];
                 let w = c * area.sqrt() / std::f64::consts::PI;
                 (0..3).for_each(|ch| intensity[ch] += w * b[ch]);
             }
-        });
+        };
+        if is_cluster(l.src) {
+            let span = self.clusters.span(l.src);
+            for (b, m) in b0[span.clone()].iter().zip(&self.members[span]) {
+                add_member(b, m.area, m.normal);
+            }
+        } else {
+            let el = &self.elements[l.src as usize];
+            add_member(&el.b[0], el.area, self.geo.quads[el.piece.surface].n);
+        }
         self.for_members(l.recv, |_, area, x, n| {
             let d = sub(centre, x);
             let r2 = dot(d, d);
@@ -703,10 +743,11 @@ impl Hierarchy<'_> {
     /// cluster of a thousand triangles fills a thousand slots: runs of a fixed number of
     /// links took 190 MB of buffer in a 35 k-triangle scene).
     pub(super) fn gather_clusters(&mut self) {
-        let kk = self.k * self.k;
         let emitters = self.emitters();
-        let mut moments = vec![[0.0; 3]; kk];
-        let mut constant = vec![[0.0; 3]; kk];
+        // each member's b₀ and the H it gathers, in the clusters' order: a cluster's members
+        // are one run of both
+        let b0 = self.member_b();
+        let mut gathered = vec![[0.0; 3]; b0.len()];
         let mut buffer: Vec<Rgb> = Vec::new();
         let mut start = 0;
         while start < self.cluster_links.len() {
@@ -731,34 +772,59 @@ impl Hierarchy<'_> {
             slices
                 .into_par_iter()
                 .zip(links.par_iter())
-                .for_each(|(out, l)| this.cluster_link_irradiance(l, &emitters, out));
+                .for_each(|(out, l)| this.cluster_link_irradiance(l, &emitters, &b0, out));
             let mut at = 0;
             for l in start..end {
-                let recv = &self.cluster_links[l].recv;
-                let members = if is_cluster(*recv) {
-                    self.clusters.members(*recv)
-                } else {
-                    std::slice::from_ref(recv)
-                };
-                for &e in members {
-                    let h = buffer[at];
-                    at += 1;
-                    let el = &mut self.elements[e as usize];
-                    match &el.exposure {
-                        Exposure::Open => (0..3).for_each(|ch| el.h[0][ch] += h[ch]),
-                        Exposure::Covered => {}
-                        // the moments ∫ χ φ H of a constant over the exposed part
-                        Exposure::Partial(p) => {
-                            constant[0] = h;
-                            Partial::apply(&p.gram, &constant, &mut moments);
-                            for (a, m) in el.h.iter_mut().zip(&moments) {
-                                (0..3).for_each(|ch| a[ch] += m[ch]);
-                            }
-                        }
+                let recv = self.cluster_links[l].recv;
+                if is_cluster(recv) {
+                    let span = self.clusters.span(recv);
+                    let n = span.len();
+                    for (g, h) in gathered[span].iter_mut().zip(&buffer[at..at + n]) {
+                        (0..3).for_each(|ch| g[ch] += h[ch]);
                     }
+                    at += n;
+                } else {
+                    self.add_constant(recv, buffer[at]);
+                    at += 1;
                 }
             }
             start = end;
+        }
+        let order: Vec<u32> = self.clusters.order().to_vec();
+        for (&p, h) in order.iter().zip(&gathered) {
+            if *h != [0.0; 3] {
+                self.add_constant(p, *h);
+            }
+        }
+    }
+
+    /// Each member's b₀ (its mean B times √A), in the clusters' order.
+    fn member_b(&self) -> Vec<Rgb> {
+        self.clusters
+            .order()
+            .iter()
+            .map(|&p| self.elements[p as usize].b[0])
+            .collect()
+    }
+
+    /// Adds the irradiance `h` (the coefficient h₀ of a constant) to element `e`'s H, on
+    /// its exposed part.
+    fn add_constant(&mut self, e: u32, h: Rgb) {
+        let el = &mut self.elements[e as usize];
+        match &el.exposure {
+            Exposure::Open => (0..3).for_each(|ch| el.h[0][ch] += h[ch]),
+            Exposure::Covered => {}
+            // the moments ∫ χ φ H of a constant over the exposed part
+            Exposure::Partial(p) => {
+                let kk = el.h.len();
+                let mut constant = vec![[0.0; 3]; kk];
+                let mut moments = vec![[0.0; 3]; kk];
+                constant[0] = h;
+                Partial::apply(&p.gram, &constant, &mut moments);
+                for (a, m) in el.h.iter_mut().zip(&moments) {
+                    (0..3).for_each(|ch| a[ch] += m[ch]);
+                }
+            }
         }
     }
 }
@@ -961,6 +1027,7 @@ mod tests {
         h.link_all(&crate::progress::Silent).unwrap();
         while h.sweep() > 1e-9 {}
         let emitters = h.emitters();
+        let b0 = h.member_b();
         let mut checked = [0, 0];
         for l in &h.cluster_links {
             let mut sources = Vec::new();
@@ -971,7 +1038,7 @@ mod tests {
             let mut receivers = Vec::new();
             h.for_members(l.recv, |e, area, _, _| receivers.push((e, area)));
             let mut out = vec![[0.0; 3]; receivers.len()];
-            h.cluster_link_irradiance(l, &emitters, &mut out);
+            h.cluster_link_irradiance(l, &emitters, &b0, &mut out);
             for (&(i, ai), got) in receivers.iter().zip(&out) {
                 let h_i: f64 = sources
                     .iter()

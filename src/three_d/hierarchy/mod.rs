@@ -97,6 +97,8 @@ struct Hierarchy<'g> {
     links: Vec<Link>,
     /// The cluster tree over the patches, where the refinement starts ([`clustered`]).
     clusters: Clusters,
+    /// The patches under the cluster tree, in its order ([`clustered::Member`]).
+    members: Vec<clustered::Member>,
     /// Links with a cluster at one end or both.
     cluster_links: Vec<clustered::ClusterLink>,
     /// Cluster pairs accepted without a link because none of their rays got through, with
@@ -159,6 +161,8 @@ impl<'g> Hierarchy<'g> {
                 }
             })
             .collect();
+        let clusters = Clusters::new(&geo.quads, &groups);
+        let members = clustered::members(&clusters, &geo.quads);
         let mut h = Hierarchy {
             geo,
             quads,
@@ -185,7 +189,8 @@ impl<'g> Hierarchy<'g> {
                 .collect(),
             elements,
             links: Vec::new(),
-            clusters: Clusters::new(&geo.quads, &groups),
+            clusters,
+            members,
             cluster_links: Vec::new(),
             hidden_clusters: Vec::new(),
             cluster_state: Vec::new(),
