@@ -105,7 +105,10 @@ fn order_0_in_the_3_by_3_room() {
 #[test]
 fn order_2_is_no_worse_than_order_1() {
     let doc = gallery("rotated-boxes");
-    let want = reference(&doc, 64);
+    // 192² paths per cell: the reference's noise (0.37 % of the cell means) below the gaps
+    // it compares (at 64², 1.1 %, the two orders' gaps were both within its noise, and
+    // which came out ahead was the reference's draw)
+    let want = reference(&doc, 192);
     let mut net = Vec::new();
     for order in [1, 2] {
         let mut d = doc.clone();
