@@ -973,7 +973,8 @@ mod tests {
             rays
         };
         let (floor, light) = (0u32, 2u32);
-        for (size, want) in [(0.5, [256, 64, 16]), (8.0, [16, 0, 0])] {
+        // the rays that judge the pair, and as many fresh ones for its link
+        for (size, want) in [(0.5, [512, 128, 32]), (8.0, [32, 0, 0])] {
             let mut h = Hierarchy::new(
                 &geo,
                 quads,
@@ -1041,7 +1042,8 @@ mod tests {
         assert!(estimate.1 < 0.7);
         h.threshold = 0.8 * whole;
         let (verdict, rays) = h.judge(floor, light, estimate);
-        assert_eq!(rays, 256);
+        // 256 rays judge it, 256 fresh ones find it hidden too
+        assert_eq!(rays, 512);
         let Verdict::Hidden(x) = verdict else {
             panic!("{verdict:?}")
         };
