@@ -517,7 +517,7 @@ impl Hierarchy<'_> {
         // rays' fraction errs with one sign over the pairs kept; fresh rays are independent
         // of the verdict
         if !clear {
-            v = visible_fraction_over(bvh, pr, mask, ps, used, seed ^ 2, &mut rays);
+            v = visible_fraction_over(bvh, pr, mask, ps, link_grid(used), seed ^ 2, &mut rays);
         }
         if v.whole > 0.0 {
             (Verdict::Link(x, v), rays)
@@ -742,6 +742,16 @@ impl Hierarchy<'_> {
             })
             .collect())
     }
+}
+
+/// The side of the grid of fresh rays whose visible fraction a kept pair carries, from the
+/// side `judged` of the grid that judged it: half as long again (2.25 times the rays). The
+/// judgement needs only which side of the tolerance an estimate falls; the fraction is read
+/// by the whole receiver. With as many fresh rays as judging ones, their noise put the
+/// Cornell box made of meshes 0.31 % from the box of parallelograms on its ceiling (the
+/// requirement is 0.3 %); with these, 0.23 %.
+fn link_grid(judged: usize) -> usize {
+    judged + judged / 2
 }
 
 /// The first item of each key, in order, and for every item the index of its key's first.
@@ -973,8 +983,12 @@ mod tests {
             rays
         };
         let (floor, light) = (0u32, 2u32);
-        // the rays that judge the pair, and as many fresh ones for its link
-        for (size, want) in [(0.5, [512, 128, 32]), (8.0, [32, 0, 0])] {
+        // the rays that judge the pair (n²), and the fresh ones of its link ([`link_grid`])
+        let judged_and_fresh = |n: usize| (n * n + link_grid(n) * link_grid(n)) as u64;
+        for (size, want) in [
+            (0.5, [16, 8, 4].map(judged_and_fresh)),
+            (8.0, [judged_and_fresh(4), 0, 0]),
+        ] {
             let mut h = Hierarchy::new(
                 &geo,
                 quads,
@@ -1042,8 +1056,8 @@ mod tests {
         assert!(estimate.1 < 0.7);
         h.threshold = 0.8 * whole;
         let (verdict, rays) = h.judge(floor, light, estimate);
-        // 256 rays judge it, 256 fresh ones find it hidden too
-        assert_eq!(rays, 512);
+        // 16 × 16 rays judge it, 24 × 24 fresh ones find it hidden too
+        assert_eq!(rays, 256 + 576);
         let Verdict::Hidden(x) = verdict else {
             panic!("{verdict:?}")
         };
