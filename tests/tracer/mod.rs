@@ -100,6 +100,12 @@ impl Quad {
         Some((dot(self.e2, r) * inv, s, t))
     }
 
+    /// The area of its emission region.
+    pub fn emitting_area(&self) -> f64 {
+        let (rs, rt) = self.region;
+        self.area * (rs[1] - rs[0]) * (rt[1] - rt[0])
+    }
+
     pub fn emits(&self, s: f64, t: f64) -> bool {
         let (rs, rt) = self.region;
         rs[0] <= s && s <= rs[1] && rt[0] <= t && t <= rt[1]
@@ -232,20 +238,11 @@ impl Tracer {
         }
         let mut emitting_area = vec![0.0; quads.len()];
         for (patches, cumulative) in &mut emitters {
-            let total: f64 = patches
-                .iter()
-                .map(|&i| {
-                    let (rs, rt) = quads[i].region;
-                    quads[i].area * (rs[1] - rs[0]) * (rt[1] - rt[0])
-                })
-                .sum();
-            for &i in patches.iter() {
-                emitting_area[i] = total;
-            }
+            let total: f64 = patches.iter().map(|&i| quads[i].emitting_area()).sum();
             let mut acc = 0.0;
             for &i in patches.iter() {
-                let (rs, rt) = quads[i].region;
-                acc += quads[i].area * (rs[1] - rs[0]) * (rt[1] - rt[0]) / total;
+                emitting_area[i] = total;
+                acc += quads[i].emitting_area() / total;
                 cumulative.push(acc);
             }
         }
@@ -355,15 +352,13 @@ impl Tracer {
         let n = self.quads[on].n;
         let mut sum = [0.0; 3];
         for (patches, cumulative) in &self.emitters {
-            let (l, share) = if patches.len() == 1 {
-                (patches[0], 1.0)
+            let l = if patches.len() == 1 {
+                patches[0]
             } else {
                 let u = rng.random::<f64>();
-                let at = cumulative
+                patches[cumulative
                     .partition_point(|&c| c < u)
-                    .min(patches.len() - 1);
-                let below = if at == 0 { 0.0 } else { cumulative[at - 1] };
-                (patches[at], cumulative[at] - below)
+                    .min(patches.len() - 1)]
             };
             if l == on {
                 continue;
@@ -386,7 +381,9 @@ impl Tracer {
             if cx <= 0.0 || cy <= 0.0 || self.blocked(x, y, on, l) {
                 continue;
             }
-            let area = q.area * (rs[1] - rs[0]) * (rt[1] - rt[0]) / share;
+            // a patch drawn by its share of the surface's emitting area, then a point on it
+            // uniformly: the point's density over that area is one over all of it
+            let area = self.emitting_area[l];
             let g = cx * cy / (std::f64::consts::PI * r2 * r2) * area;
             // the densities, per solid angle at x, of this light point and of the cosine
             // direction toward it

@@ -22,9 +22,10 @@
 //! and by V's correlation with the kernel over the pair, so σ = d / (d + dist) + √(V(1 − V)/n),
 //! and splitting the source lowers only the first term (the second adds up over its parts).
 //! A pair none of whose n rays got through has σ = 3/n, the rays' bound on what they missed
-//! ([`crate::three_d::visibility::unseen_bound`]). An accepted link carries V from n fresh
-//! rays, not from those that judged it, as the element links do ([`super::refine`]): with the
-//! judging rays, a mesh window behind thin bars lit the room's walls 1.2–3.3 % bright.
+//! ([`crate::three_d::visibility::unseen_bound`]). A pair that is not split (linked or
+//! hidden) carries V from n fresh rays, not from those that judged it, as the element pairs
+//! do ([`super::refine`]): with the judging rays, a mesh window behind thin bars lit the
+//! room's walls 1.2–3.3 % bright.
 //! The weights w_R and tolerances are those of the element links' oracle (with w_R = 1 the Cornell box
 //! made of meshes came out 1 % dark on its ceiling). When err is above the tolerance, the end
 //! with the larger box is split: a cluster into its two children, an element into its four; a
@@ -791,16 +792,15 @@ impl Hierarchy<'_> {
                     }
                     at += n;
                 } else {
-                    self.add_constant(recv, buffer[at]);
+                    add_constant(&mut self.elements[recv as usize], buffer[at]);
                     at += 1;
                 }
             }
             start = end;
         }
-        let order: Vec<u32> = self.clusters.order().to_vec();
-        for (&p, h) in order.iter().zip(&gathered) {
+        for (&p, h) in self.clusters.order().iter().zip(&gathered) {
             if *h != [0.0; 3] {
-                self.add_constant(p, *h);
+                add_constant(&mut self.elements[p as usize], *h);
             }
         }
     }
@@ -813,24 +813,24 @@ impl Hierarchy<'_> {
             .map(|&p| self.elements[p as usize].b[0])
             .collect()
     }
+}
 
-    /// Adds the irradiance `h` (the coefficient h₀ of a constant) to element `e`'s H, on
-    /// its exposed part.
-    fn add_constant(&mut self, e: u32, h: Rgb) {
-        let el = &mut self.elements[e as usize];
-        match &el.exposure {
-            Exposure::Open => (0..3).for_each(|ch| el.h[0][ch] += h[ch]),
-            Exposure::Covered => {}
-            // the moments ∫ χ φ H of a constant over the exposed part
-            Exposure::Partial(p) => {
-                let kk = el.h.len();
-                let mut constant = vec![[0.0; 3]; kk];
-                let mut moments = vec![[0.0; 3]; kk];
-                constant[0] = h;
-                Partial::apply(&p.gram, &constant, &mut moments);
-                for (a, m) in el.h.iter_mut().zip(&moments) {
-                    (0..3).for_each(|ch| a[ch] += m[ch]);
-                }
+/// Adds the irradiance `h` (the coefficient h₀ of a constant) to an element's H, on its
+/// exposed part.
+fn add_constant(el: &mut super::tree::Element, h: Rgb) {
+    const MAX_KK: usize = crate::three_d::transfer::MAX_K * crate::three_d::transfer::MAX_K;
+    match &el.exposure {
+        Exposure::Open => (0..3).for_each(|ch| el.h[0][ch] += h[ch]),
+        Exposure::Covered => {}
+        // the moments ∫ χ φ H of a constant over the exposed part
+        Exposure::Partial(p) => {
+            let kk = el.h.len();
+            let mut constant = [[0.0; 3]; MAX_KK];
+            let mut moments = [[0.0; 3]; MAX_KK];
+            constant[0] = h;
+            Partial::apply(&p.gram, &constant[..kk], &mut moments[..kk]);
+            for (a, m) in el.h.iter_mut().zip(&moments[..kk]) {
+                (0..3).for_each(|ch| a[ch] += m[ch]);
             }
         }
     }

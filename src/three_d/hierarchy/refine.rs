@@ -32,7 +32,7 @@
 //! pair: the verdict depends on its rays (a pair all of whose rays passed is accepted where
 //! a partly visible one is split), so the judging rays' fraction is biased over the accepted
 //! links, and always the same way. Bars 4 cm wide across a window that the rays of a pair
-//! happened to miss made the far wall 2.7 % bright (`tests/path_traced.rs`); fresh rays are
+//! happened to miss made the far wall 2.6 % bright (`tests/path_traced.rs`); fresh rays are
 //! independent of the verdict, and their fraction is not.
 
 use super::clustered::{ClusterLink, ClusterVerdict};
