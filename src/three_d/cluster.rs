@@ -223,7 +223,8 @@ pub struct Clusters {
     pub(super) nodes: Vec<Cluster>,
     /// The patches, each cluster's members one run of them.
     order: Vec<u32>,
-    /// The areas of `order` summed up to each position (one more than the patches).
+    /// The areas of `order` that send or receive light ([`Clusters::weigh`]) summed up to
+    /// each position (one more than the patches).
     prefix: Vec<f64>,
     /// The root of each group's tree: a cluster, or the group's only patch.
     pub(super) roots: Vec<u32>,
@@ -364,13 +365,9 @@ impl Clusters {
             let top = tree.build_top(&scene, &mut meshes, &mut order, singles.len() as u32);
             tree.starts.push(top);
         }
-        let mut sum = 0.0;
-        for &p in &order {
-            sum += quads[p as usize].area;
-            tree.prefix.push(sum);
-        }
         tree.order = order;
         tree.centres = centres;
+        tree.weigh(quads, |_| 1.0);
         tree
     }
 
@@ -485,6 +482,28 @@ impl Clusters {
         // the first member whose run of area ends beyond the target
         let k = a + self.prefix[a + 1..=b].partition_point(|&x| x <= target);
         self.order[k.min(b - 1)] as usize
+    }
+
+    /// Weighs each patch's area for [`Clusters::pick`] by `share(patch)`, the share of it
+    /// that takes part in the transfer: 0 for a patch wholly covered by a solid resting on
+    /// it ([`crate::three_d::cover`]), which neither receives nor sends. Points drawn on it
+    /// would count every ray toward it as blocked on top of its sending and receiving
+    /// nothing, darkening the rest of every cluster it is in.
+    pub(super) fn weigh(&mut self, quads: &[Parallelogram], share: impl Fn(usize) -> f64) {
+        let mut sum = 0.0;
+        self.prefix.clear();
+        self.prefix.push(0.0);
+        for &p in &self.order {
+            sum += quads[p as usize].area * share(p as usize);
+            self.prefix.push(sum);
+        }
+    }
+
+    /// Whether some member of cluster `reference` takes part in the transfer
+    /// ([`Clusters::weigh`]).
+    pub(super) fn takes_part(&self, reference: u32) -> bool {
+        let (a, b) = self.get(reference).members;
+        self.prefix[b as usize] > self.prefix[a as usize]
     }
 
     /// The patches of cluster `reference`.
@@ -670,6 +689,34 @@ mod tests {
 
     /// Every patch is in the tree once, and each cluster's box, cone, slab and area hold its
     /// members.
+    #[test]
+    fn a_covered_patch_is_never_picked_and_a_cluster_of_them_takes_no_part() {
+        let quads: Vec<Parallelogram> = (0..16)
+            .map(|k| {
+                let x = k as f64;
+                tri([x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 0.0, -1.0])
+            })
+            .collect();
+        let mut tree = Clusters::new(&quads, &[(0..16).collect()]);
+        // the patches 0..8 covered
+        tree.weigh(&quads, |p| f64::from(p >= 8));
+        let root = tree.starts[0];
+        let mut picked = [0usize; 16];
+        for i in 0..1000 {
+            picked[tree.pick(root, (i as f64 + 0.5) / 1000.0)] += 1;
+        }
+        assert!(picked[..8].iter().all(|&n| n == 0), "{picked:?}");
+        // the rest by area: equal shares
+        assert!(picked[8..].iter().all(|&n| n.abs_diff(125) <= 1), "{picked:?}");
+        assert!(tree.takes_part(root));
+        for (i, _) in tree.nodes.iter().enumerate() {
+            let c = CLUSTER | i as u32;
+            let any = tree.members(c).iter().any(|&m| m >= 8);
+            assert_eq!(tree.takes_part(c), any);
+        }
+        assert!((0..tree.nodes.len()).any(|i| !tree.takes_part(CLUSTER | i as u32)));
+    }
+
     #[test]
     fn the_tree_holds_every_patch_once_and_bounds_its_members() {
         let mut quads = Vec::new();

@@ -105,16 +105,19 @@ impl Mask {
     /// side.
     ///
     /// `bvh` holds the occluders ([`Bvh::occluders`]), `all` every surface ([`Bvh::new`]).
+    /// `groups` lists the patches of each of the document's surfaces (a mesh is one): a lid
+    /// is measured by its whole surface ([`widths`]).
     pub(super) fn of_scene(
         bvh: &Bvh,
         all: &Bvh,
+        groups: &[Vec<u32>],
         res: impl Fn(usize) -> usize,
     ) -> Vec<Option<Mask>> {
         let quads = all.quads();
-        let largest = quads.iter().map(|q| q.diameter()).fold(0.0, f64::max);
+        let widths = widths(quads, groups);
         (0..quads.len())
             .map(|i| {
-                (!contacts(all, i).is_empty() || lidded(all, i, largest))
+                (!contacts(all, i).is_empty() || lidded(all, i, &widths))
                     .then(|| Mask::probe(quads, bvh, i, res(i)))
                     .filter(|m| m.cells.iter().any(|c| *c != Cell::Open))
             })
@@ -505,33 +508,81 @@ pub(super) fn contacts(all: &Bvh, i: usize) -> Vec<[[f64; 2]; 2]> {
 }
 
 /// Whether another surface lies flat against surface `i`, facing the same way, closer to it
-/// than [`LID_GAP`] of its own smaller side, over part of it: a ceiling light hung a little
-/// below the ceiling. The ceiling behind it sees only the light's back through a sliver at
-/// grazing angles, so it is dark up to the light's outline, where one polynomial over both
-/// sides would smear it (on the Cornell box without its blocks, the light 1 unit below the
-/// ceiling: the four cells above it 40 % bright, those around it 8 % dark).
+/// than [`LID_GAP`] of its own width ([`widths`]), over part of it: a ceiling light hung a
+/// little below the ceiling, a rug on a floor. The ceiling behind the light sees only the
+/// light's back through a sliver at grazing angles, so it is dark up to the light's outline,
+/// where one polynomial over both sides would smear it (on the Cornell box without its blocks,
+/// the light 1 unit below the ceiling: the four cells above it 40 % bright, those around it
+/// 8 % dark). Worse, the smeared element sends light from a polynomial darkened by its dark
+/// part through a visible fraction lowered by the same part: the light is taken out twice (a
+/// rug of 260 triangles 5 mm above a room's floor left the room 1–2 % dark).
 ///
 /// Over part of it: a corner of the lid over i, or a corner of i under the lid (a triangle of
 /// a meshed ceiling wholly under a light holds none of the light's corners).
 ///
 /// `all` holds every surface ([`Bvh::new`]): a lid's corner over i is within [`LID_GAP`] of
-/// `largest`, the largest surface's diameter, of i's box.
-fn lidded(all: &Bvh, i: usize, largest: f64) -> bool {
+/// the widest surface's width of i's box.
+fn lidded(all: &Bvh, i: usize, widths: &[f64]) -> bool {
     let quads = all.quads();
     let q = &quads[i];
-    let (lo, hi) = padded_box(q, LID_GAP * largest);
+    let widest = widths.iter().copied().fold(0.0, f64::max);
+    let (lo, hi) = padded_box(q, LID_GAP * widest);
     all.any_in_box(lo, hi, |j| {
         let o = &quads[j];
-        let side = |e: V3| dot(e, e).sqrt();
         let gap = q.side(o.p0);
-        let reach = LID_GAP * side(o.e1).min(side(o.e3));
         let corners = o.outline();
         j != i
             && dot(q.n, o.n) > 1.0 - 1e-9
             && gap > 0.0
-            && gap < reach
+            && gap < LID_GAP * widths[j]
             && (corners.iter().any(|&c| inside(q, c)) || q.outline().iter().any(|&c| inside(o, c)))
     })
+}
+
+/// The width of each patch's document surface (`groups` lists each surface's patches): the
+/// smaller side of the rectangle with the surface's second moments of area, √(12 λ₂) with
+/// λ₂ the middle eigenvalue of the covariance of a point uniform on the surface. That is the
+/// smaller side of a rectangle, and of a rectangle made of any number of triangles: a lid
+/// made of small triangles hides what is under it as the one rectangle would.
+fn widths(quads: &[Parallelogram], groups: &[Vec<u32>]) -> Vec<f64> {
+    use nalgebra::{Matrix3, Vector3};
+    let mut out = vec![0.0; quads.len()];
+    for g in groups {
+        // the area, first and second moments of each patch (a triangle's covariance is
+        // Σ dᵢ dᵢᵀ / 12 over its corners' offsets from its centroid; a parallelogram's
+        // (e₁ e₁ᵀ + e₃ e₃ᵀ) / 12)
+        let (mut area, mut first, mut second) = (0.0, Vector3::zeros(), Matrix3::zeros());
+        for &p in g {
+            let q = &quads[p as usize];
+            let (e1, e3) = (Vector3::from(q.e1), Vector3::from(q.e3));
+            let p0 = Vector3::from(q.outline()[0]);
+            let (centre, cov) = if q.tri {
+                let c = p0 + (e1 + e3) / 3.0;
+                let d = [p0 - c, p0 + e1 - c, p0 + e3 - c];
+                (
+                    c,
+                    d.iter().map(|d| d * d.transpose()).sum::<Matrix3<f64>>() / 12.0,
+                )
+            } else {
+                (
+                    p0 + (e1 + e3) / 2.0,
+                    (e1 * e1.transpose() + e3 * e3.transpose()) / 12.0,
+                )
+            };
+            area += q.area;
+            first += q.area * centre;
+            second += q.area * (cov + centre * centre.transpose());
+        }
+        let mean = first / area;
+        let cov = second / area - mean * mean.transpose();
+        let mut l = cov.symmetric_eigenvalues();
+        l.as_mut_slice().sort_by(|a, b| b.total_cmp(a));
+        let width = (12.0 * l[1].max(0.0)).sqrt();
+        for &p in g {
+            out[p as usize] = width;
+        }
+    }
+    out
 }
 
 /// Whether the projection of `c` along `q`'s normal falls inside `q` (its triangle, for a
@@ -556,7 +607,7 @@ fn padded_box(q: &Parallelogram, pad: f64) -> (V3, V3) {
 /// How far outside a piece, in its surface's (s, t), a contact line still touches it.
 const MEET_SLACK: f64 = 1e-9;
 
-/// How close a surface must lie in front of another, as a share of its smaller side, to be
+/// How close a surface must lie in front of another, as a share of its width, to be
 /// taken for a lid ([`lidded`]): the probes of the mask then decide, point by point.
 const LID_GAP: f64 = 0.02;
 
@@ -707,7 +758,7 @@ mod tests {
             assert!(dot(q.n, out) > 0.0, "the box's faces point out");
         }
         let bvh = Bvh::occluders(&quads);
-        let masks = Mask::of_scene(&bvh, &Bvh::new(&quads), |_| 8);
+        let masks = Mask::of_scene(&bvh, &Bvh::new(&quads), &each_alone(quads.len()), |_| 8);
         assert!(masks[1..].iter().all(Option::is_none));
         let m = masks[0].as_ref().expect("the floor is stood on");
         assert!(m.covered(3.5 / 8.0, 3.0 / 8.0));
@@ -785,13 +836,12 @@ mod tests {
                 p([[3.0, y, 3.0], [5.0, y, 3.0], [5.0, y, 5.0], [3.0, y, 5.0]]),
             ]
         };
-        // the largest diameter is the ceiling's, √128
-        let lidded = |all: &Bvh, i| lidded(all, i, 128f64.sqrt());
+        let lidded = |all: &Bvh, i| lidded(all, i, &widths(all.quads(), &each_alone(2)));
         let quads = ceiling(0.01);
         assert!(quads[0].n[1] < 0.0 && quads[1].n[1] < 0.0, "both face down");
         assert!(lidded(&Bvh::new(&quads), 0) && !lidded(&Bvh::new(&quads), 1));
         let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(&bvh, &Bvh::new(&quads), |_| 8)
+        let m = Mask::of_scene(&bvh, &Bvh::new(&quads), &each_alone(quads.len()), |_| 8)
             .remove(0)
             .expect("covered");
         // the ceiling's s runs along x and t along z: the panel is [0.375, 0.625]²
@@ -810,12 +860,92 @@ mod tests {
         assert!(!lidded(&Bvh::new(&flipped), 0));
     }
 
+    /// Each patch its own surface.
+    fn each_alone(n: usize) -> Vec<Vec<u32>> {
+        (0..n as u32).map(|p| vec![p]).collect()
+    }
+
+    /// A `w × h` grid over parallelogram `c`, two triangles a cell, facing as `c` does.
+    fn triangles(c: [V3; 4], w: usize, h: usize) -> Vec<Parallelogram> {
+        let at = |i: usize, j: usize| {
+            let (s, t) = (i as f64 / w as f64, j as f64 / h as f64);
+            [0, 1, 2].map(|k| c[0][k] + s * (c[1][k] - c[0][k]) + t * (c[3][k] - c[0][k]))
+        };
+        let tri = |a: V3, b: V3, c: V3| {
+            let far = add(b, crate::three_d::geometry::sub(c, a));
+            let mut p = Parallelogram::new(&[a, b, far, c]);
+            p.tri = true;
+            p.area = 0.5 * p.jac;
+            p
+        };
+        let mut out = Vec::new();
+        for j in 0..h {
+            for i in 0..w {
+                out.push(tri(at(i, j), at(i + 1, j), at(i + 1, j + 1)));
+                out.push(tri(at(i, j), at(i + 1, j + 1), at(i, j + 1)));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_surface_is_as_wide_as_the_smaller_side_of_its_rectangle() {
+        let c = [
+            [0.0, 0.0, 0.0],
+            [2.6, 0.0, 0.0],
+            [2.6, 1.0, 1.0],
+            [0.0, 1.0, 1.0],
+        ];
+        let whole = widths(&[Parallelogram::new(&c)], &each_alone(1));
+        assert!((whole[0] - 2f64.sqrt()).abs() < 1e-12, "{whole:?}");
+        for (w, h) in [(1, 1), (13, 10), (3, 17)] {
+            let parts = triangles(c, w, h);
+            let one: Vec<u32> = (0..parts.len() as u32).collect();
+            let got = widths(&parts, &[one]);
+            assert!(
+                got.iter().all(|x| (x - 2f64.sqrt()).abs() < 1e-12),
+                "{got:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_lid_of_many_triangles_covers_as_one_rectangle_does() {
+        // a floor [0, 8]² facing up, and a rug [3, 5]² of 8 × 8 cells of triangles 1 cm above
+        // it: 2 % of a triangle's side is 5 mm, of the rug's 4 cm
+        let mut quads = vec![Parallelogram::new(&[
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 8.0],
+            [8.0, 0.0, 8.0],
+            [8.0, 0.0, 0.0],
+        ])];
+        let y = 0.01;
+        quads.extend(triangles(
+            [[3.0, y, 3.0], [3.0, y, 5.0], [5.0, y, 5.0], [5.0, y, 3.0]],
+            8,
+            8,
+        ));
+        assert!(quads.iter().all(|q| q.n[1] > 0.0), "all face up");
+        let rug: Vec<u32> = (1..quads.len() as u32).collect();
+        let groups = [vec![0], rug];
+        let all = Bvh::new(&quads);
+        assert!(lidded(&all, 0, &widths(&quads, &groups)));
+        assert!(!lidded(&all, 0, &widths(&quads, &each_alone(quads.len()))));
+        let bvh = Bvh::occluders(&quads);
+        let m = Mask::of_scene(&bvh, &all, &groups, |_| 8)
+            .remove(0)
+            .expect("the floor under the rug is covered");
+        // the floor's s runs along z and t along x: the rug is [0.375, 0.625]²
+        assert!(m.covered(0.5, 0.5) && m.covered(0.45, 0.55));
+        assert!(!m.covered(0.3, 0.5) && !m.covered(0.5, 0.7));
+    }
+
     #[test]
     fn masked_grams_are_the_integrals_over_the_exposed_part() {
         // the foot's edge z = 4.5 halves the finest cell z ∈ [4, 5], x ∈ [3, 4]
         let quads = floor_with_box([2.0, 3.0], [5.0, 4.5]);
         let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(&bvh, &Bvh::new(&quads), |_| 8)
+        let m = Mask::of_scene(&bvh, &Bvh::new(&quads), &each_alone(quads.len()), |_| 8)
             .remove(0)
             .expect("mask");
         for k in 1..=4 {

@@ -47,6 +47,11 @@ const RUN_MEMBERS: usize = 1 << 20;
 /// Rays between two clusters for their visible fraction.
 const CLUSTER_RAYS: usize = 16;
 
+/// Draws of a receiving point before one on a covered part is taken after all
+/// ([`Hierarchy::sample`]): an end with an exposed share f keeps a covered point with
+/// probability (1 − f)¹⁶, and only such a point's ray may be wrongly blocked.
+const COVERED_DRAWS: usize = 16;
+
 /// The least distance between the boxes of a cluster link's ends, in their larger diameter.
 /// Taking both ends as points is a fair kernel only for separated ends: the distance of any
 /// two of their points is then within a factor 3 of the centres', and the transfer stays
@@ -483,7 +488,7 @@ impl Hierarchy<'_> {
             );
         }
         let (er, es) = (self.end(r), self.end(s));
-        if !er.bound.facing(&es.bound) {
+        if !self.takes_part(r, true) || !self.takes_part(s, false) || !er.bound.facing(&es.bound) {
             return (ClusterVerdict::Inert, 0);
         }
         let (sr, ss) = (self.state(r), self.state(s));
@@ -561,6 +566,16 @@ impl Hierarchy<'_> {
         )
     }
 
+    /// Whether an end receives (`receiving`) or sends anything: not a covered element, nor a
+    /// cluster of covered patches ([`crate::three_d::cover`]), unless it sends its emission.
+    fn takes_part(&self, id: u32, receiving: bool) -> bool {
+        if is_cluster(id) {
+            return self.clusters.takes_part(id);
+        }
+        let el = &self.elements[id as usize];
+        el.exposure != Exposure::Covered || (!receiving && el.peak > 0.0)
+    }
+
     fn cluster_identity(&self, id: u32) -> u64 {
         if is_cluster(id) {
             (1 << 63) | id as u64
@@ -574,28 +589,47 @@ impl Hierarchy<'_> {
         }
     }
 
-    /// A point of a cluster (of a member picked by area) or of an element, with its surface
-    /// and normal.
-    fn sample(&self, id: u32, rng: &mut SplitMix) -> (V3, usize, V3) {
-        let piece = if is_cluster(id) {
-            crate::three_d::geometry::Piece::whole(self.clusters.pick(id, rng.next_f64()))
-        } else {
-            self.elements[id as usize].piece
-        };
-        let q = &self.geo.quads[piece.surface];
-        let (mut u, mut v) = (rng.next_f64(), rng.next_f64());
-        let (s, t) = if q.tri {
-            if u + v > 1.0 {
-                (u, v) = (1.0 - u, 1.0 - v);
+    /// A point of a cluster (of a member picked by the area that takes part in the transfer,
+    /// [`crate::three_d::cluster::Clusters::weigh`]) or of an element, with its surface and
+    /// normal. A `receiving` end's point is drawn again while it falls on a covered part, as
+    /// the element links' are ([`crate::three_d::visibility::visible_fraction_over`]): such a
+    /// part receives nothing ([`add_constant`] delivers the moments of its exposed part), and
+    /// counting its blocked rays too would take its share of the light twice. A sending end's
+    /// point may fall there: a partly covered element's polynomial is that of its exposed part
+    /// continued over the whole element, and its blocked rays take the continuation back out.
+    fn sample(&self, id: u32, receiving: bool, rng: &mut SplitMix) -> (V3, usize, V3) {
+        let mut point = ([0.0; 3], 0);
+        for _ in 0..COVERED_DRAWS {
+            let piece = if is_cluster(id) {
+                crate::three_d::geometry::Piece::whole(self.clusters.pick(id, rng.next_f64()))
+            } else {
+                self.elements[id as usize].piece
+            };
+            let q = &self.geo.quads[piece.surface];
+            let (mut u, mut v) = (rng.next_f64(), rng.next_f64());
+            let (s, t) = if q.tri {
+                if u + v > 1.0 {
+                    (u, v) = (1.0 - u, 1.0 - v);
+                }
+                piece.at_local(u, v)
+            } else {
+                (
+                    piece.s[0] + u * (piece.s[1] - piece.s[0]),
+                    piece.t[0] + v * (piece.t[1] - piece.t[0]),
+                )
+            };
+            point = (q.at(s, t), piece.surface);
+            let covered = || {
+                self.masks[piece.surface]
+                    .as_ref()
+                    .is_some_and(|m| m.covered(s, t))
+            };
+            if !receiving || !covered() {
+                break;
             }
-            piece.at_local(u, v)
-        } else {
-            (
-                piece.s[0] + u * (piece.s[1] - piece.s[0]),
-                piece.t[0] + v * (piece.t[1] - piece.t[0]),
-            )
-        };
-        (q.at(s, t), piece.surface, q.n)
+        }
+        let (x, surface) = point;
+        (x, surface, self.geo.quads[surface].n)
     }
 
     /// The visible fraction between two ends: of [`CLUSTER_RAYS`] pairs of points, those
@@ -604,8 +638,8 @@ impl Hierarchy<'_> {
         let mut rng = SplitMix(seed);
         let (mut open, mut valid, mut rays) = (0usize, 0usize, 0u64);
         for _ in 0..CLUSTER_RAYS {
-            let (x, i, n) = self.sample(r, &mut rng);
-            let (y, j, m) = self.sample(s, &mut rng);
+            let (x, i, n) = self.sample(r, true, &mut rng);
+            let (y, j, m) = self.sample(s, false, &mut rng);
             let d = sub(y, x);
             if dot(n, d) <= 0.0 || dot(m, d) >= 0.0 || norm(d) == 0.0 {
                 continue;

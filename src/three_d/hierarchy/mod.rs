@@ -135,8 +135,8 @@ impl<'g> Hierarchy<'g> {
         let levels: Vec<u32> = geo.quads.iter().map(|q| sizing.finest_level(q)).collect();
         let all = Bvh::new(&geo.quads);
         let groups = surface_groups(quads);
-        let masks = Mask::of_scene(&geo.bvh, &all, |i| 1 << levels[i]);
-        let elements = quads
+        let masks = Mask::of_scene(&geo.bvh, &all, &groups, |i| 1 << levels[i]);
+        let elements: Vec<Element> = quads
             .iter()
             .enumerate()
             .map(|(i, q)| {
@@ -161,7 +161,13 @@ impl<'g> Hierarchy<'g> {
                 }
             })
             .collect();
-        let clusters = Clusters::new(&geo.quads, &groups);
+        let mut clusters = Clusters::new(&geo.quads, &groups);
+        // a patch wholly covered by a solid resting on it takes no part in the transfer,
+        // unless it emits (a covered part keeps B = E)
+        clusters.weigh(&geo.quads, |p| {
+            let el: &Element = &elements[p];
+            f64::from(el.exposure != Exposure::Covered || el.peak > 0.0)
+        });
         let members = clustered::members(&clusters, &geo.quads);
         let mut h = Hierarchy {
             geo,
