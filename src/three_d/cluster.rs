@@ -707,7 +707,10 @@ mod tests {
         }
         assert!(picked[..8].iter().all(|&n| n == 0), "{picked:?}");
         // the rest by area: equal shares
-        assert!(picked[8..].iter().all(|&n| n.abs_diff(125) <= 1), "{picked:?}");
+        assert!(
+            picked[8..].iter().all(|&n| n.abs_diff(125) <= 1),
+            "{picked:?}"
+        );
         assert!(tree.takes_part(root));
         for (i, _) in tree.nodes.iter().enumerate() {
             let c = CLUSTER | i as u32;
