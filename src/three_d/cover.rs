@@ -463,18 +463,21 @@ fn pseudo_inverse(g: &[f64], n: usize) -> Vec<f64> {
     out
 }
 
-/// The lines where other surfaces stand on surface `i`: each edge of another surface that
-/// lies in i's plane with its midpoint inside i, away from i's own edges, as its two ends'
-/// (s, t). Across such a line the radiosity of i may jump: the surface standing there hides
-/// half of the hemisphere from the points next to it, and may shade one side of it.
+/// The lines where other surfaces stand on surface `i`: the part inside i of each edge of
+/// another surface that lies in i's plane, unless that part runs along i's own edges, as its
+/// two ends' (s, t). Across such a line the radiosity of i may jump: the surface standing
+/// there hides half of the hemisphere from the points next to it, and may shade one side of
+/// it. The part inside i, not the whole edge: a box's foot on a meshed floor crosses many of
+/// the floor's triangles, and each of them must know it is stood on (with only the triangle
+/// that held the edge's midpoint, the box's faces next to the foot came out 0.2 % dark in a
+/// furnace, where every face has B = E / (1 − ρ)).
 ///
 /// `all` holds every surface of the scene ([`Bvh::new`]); only those whose box meets i's are
-/// looked at (such an edge's midpoint is in i).
+/// looked at (such an edge passes through i).
 pub(super) fn contacts(all: &Bvh, i: usize) -> Vec<[[f64; 2]; 2]> {
     let quads = all.quads();
     let q = &quads[i];
     let tol = 1e-9 * q.diameter();
-    let inside = |x: f64| (1e-6..1.0 - 1e-6).contains(&x);
     let mut lines = Vec::new();
     let (lo, hi) = padded_box(q, tol);
     let mut near = Vec::new();
@@ -495,16 +498,55 @@ pub(super) fn contacts(all: &Bvh, i: usize) -> Vec<[[f64; 2]; 2]> {
             if a == b {
                 continue;
             }
-            let (s, t) = q.params(scale(add(a, b), 0.5));
-            // (a triangle patch: its half s + t < 1)
-            let within = !q.tri || s + t < 1.0 - 1e-6;
-            if q.side(a).abs() < tol && q.side(b).abs() < tol && inside(s) && inside(t) && within {
+            if q.side(a).abs() < tol && q.side(b).abs() < tol {
                 let (pa, pb) = (q.params(a), q.params(b));
-                lines.push([[pa.0, pa.1], [pb.0, pb.1]]);
+                lines.extend(clip_inside([pa.0, pa.1], [pb.0, pb.1], q.tri));
             }
         }
     }
     lines
+}
+
+/// The part of the segment from `a` to `b` (in a patch's (s, t)) inside the patch: the unit
+/// square, or its half s + t ≤ 1 for a `tri`angle (Liang–Barsky clipping); `None` when that
+/// part is a point, or its midpoint lies on the patch's edges (a surface meeting the patch
+/// only along its border does not stand on it).
+fn clip_inside(a: [f64; 2], b: [f64; 2], tri: bool) -> Option<[[f64; 2]; 2]> {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+    // each side as p λ ≤ q along the segment a + λ d
+    let mut sides = vec![
+        (-d[0], a[0]),
+        (d[0], 1.0 - a[0]),
+        (-d[1], a[1]),
+        (d[1], 1.0 - a[1]),
+    ];
+    if tri {
+        sides.push((d[0] + d[1], 1.0 - a[0] - a[1]));
+    }
+    for (p, q) in sides {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+        } else if p < 0.0 {
+            lo = lo.max(q / p);
+        } else {
+            hi = hi.min(q / p);
+        }
+    }
+    if lo >= hi {
+        return None;
+    }
+    // (the ends themselves when inside: an edge wholly within the patch is kept as it is)
+    let at = |l: f64| match l {
+        0.0 => a,
+        1.0 => b,
+        _ => [a[0] + l * d[0], a[1] + l * d[1]],
+    };
+    let m = at(0.5 * (lo + hi));
+    let inside = |x: f64| (1e-6..1.0 - 1e-6).contains(&x);
+    (inside(m[0]) && inside(m[1]) && (!tri || m[0] + m[1] < 1.0 - 1e-6)).then(|| [at(lo), at(hi)])
 }
 
 /// Whether another surface lies flat against surface `i`, facing the same way, closer to it
@@ -907,6 +949,56 @@ mod tests {
                 "{got:?}"
             );
         }
+    }
+
+    #[test]
+    fn a_foot_across_a_meshed_floor_stands_on_every_triangle_it_crosses() {
+        // the floor [0, 8]² as 8 × 8 cells of triangles, the box's foot [2.5, 5.5] × [3.5, 4.5]
+        // (x × z): its outline runs through the middle of cells
+        let with_box = floor_with_box([2.5, 3.5], [5.5, 4.5]);
+        let mut quads = triangles(
+            [
+                [0.0, 0.0, 0.0],
+                [0.0, 0.0, 8.0],
+                [8.0, 0.0, 8.0],
+                [8.0, 0.0, 0.0],
+            ],
+            8,
+            8,
+        );
+        let floor = quads.len();
+        quads.extend_from_slice(&with_box[1..]);
+        let all = Bvh::new(&quads);
+        let (mut crossed, mut stood_on) = (0, 0);
+        for (i, q) in quads[..floor].iter().enumerate() {
+            // whether the outline passes through the triangle's inside: some of its points
+            // on either side of the foot's edge, on the edge's stretch
+            let pts: Vec<V3> = (0..=20)
+                .flat_map(|a| (0..=20 - a).map(move |b| (a as f64 / 20.0, b as f64 / 20.0)))
+                .map(|(s, t)| q.at(s, t))
+                .collect();
+            let within = |x: f64, lo: f64, hi: f64| x > lo + 1e-9 && x < hi - 1e-9;
+            let across = |axis: usize, at: f64, other: usize, lo: f64, hi: f64| {
+                let near: Vec<&V3> = pts.iter().filter(|p| within(p[other], lo, hi)).collect();
+                near.iter().any(|p| p[axis] < at - 1e-9) && near.iter().any(|p| p[axis] > at + 1e-9)
+            };
+            let crosses = across(2, 3.5, 0, 2.5, 5.5)
+                || across(2, 4.5, 0, 2.5, 5.5)
+                || across(0, 2.5, 2, 3.5, 4.5)
+                || across(0, 5.5, 2, 3.5, 4.5);
+            let lines = contacts(&all, i);
+            crossed += usize::from(crosses);
+            stood_on += usize::from(!lines.is_empty());
+            assert_eq!(!lines.is_empty(), crosses, "triangle {i}: {lines:?}");
+            for [a, b] in &lines {
+                for p in [a, b] {
+                    assert!(p[0] >= 0.0 && p[1] >= 0.0 && p[0] + p[1] <= 1.0 + 1e-12);
+                }
+            }
+        }
+        // before, only the triangles that held an edge's midpoint: at most 4
+        assert_eq!(crossed, stood_on);
+        assert!(stood_on > 4, "{stood_on}");
     }
 
     #[test]
