@@ -7,7 +7,7 @@ mod support;
 
 use icosphere::sphere;
 use serde_json::{json, Value};
-use support::{job, run, scene_file};
+use support::{grid_mesh, job, room_walls, run, scene_file};
 
 mod tracer;
 use wavrad::scene::{parse_value, Limits};
@@ -85,22 +85,6 @@ fn closed_meshes_are_furnaces() {
     }
 }
 
-/// A `w × h` grid of triangles over parallelogram `c`, facing as it does.
-fn grid(c: [[f64; 3]; 4], w: usize, h: usize) -> Value {
-    let at = |i: usize, j: usize| {
-        let (s, t) = (i as f64 / w as f64, j as f64 / h as f64);
-        [0, 1, 2].map(|k| c[0][k] + s * (c[1][k] - c[0][k]) + t * (c[3][k] - c[0][k]))
-    };
-    let positions: Vec<[f64; 3]> = (0..=h)
-        .flat_map(|j| (0..=w).map(move |i| at(i, j)))
-        .collect();
-    let triangles: Vec<[usize; 3]> = (0..h)
-        .flat_map(|j| (0..w).map(move |i| j * (w + 1) + i))
-        .flat_map(|a| [[a, a + 1, a + w + 2], [a, a + w + 2, a + w + 1]])
-        .collect();
-    json!({"positions": positions, "triangles": triangles})
-}
-
 /// A room of six meshes (6 × 5 cells of triangles each) with a closed box (five
 /// parallelograms) standing on its floor, every surface E = 1, ρ = 0.5: a furnace, B = 2
 /// everywhere but under the box's foot, where the floor keeps B = E = 1 (the covered part,
@@ -112,19 +96,9 @@ fn grid(c: [[f64; 3]; 4], w: usize, h: usize) -> Value {
 /// sides are within 0.04 %).
 #[test]
 fn a_box_standing_on_a_meshed_floor_keeps_the_furnace() {
-    let (w, d, h) = (5.0, 4.0, 2.7);
-    let walls = [
-        [[0.0, 0.0, 0.0], [0.0, 0.0, d], [w, 0.0, d], [w, 0.0, 0.0]],
-        [[0.0, h, 0.0], [w, h, 0.0], [w, h, d], [0.0, h, d]],
-        [[0.0, 0.0, 0.0], [w, 0.0, 0.0], [w, h, 0.0], [0.0, h, 0.0]],
-        [[0.0, 0.0, d], [0.0, h, d], [w, h, d], [w, 0.0, d]],
-        [[w, 0.0, 0.0], [w, 0.0, d], [w, h, d], [w, h, 0.0]],
-        [[0.0, 0.0, 0.0], [0.0, h, 0.0], [0.0, h, d], [0.0, 0.0, d]],
-    ];
-    let mut surfaces: Vec<Value> = walls
+    let mut surfaces: Vec<Value> = room_walls()
         .iter()
-        .enumerate()
-        .map(|(i, c)| json!({"name": format!("wall-{i}"), "mesh": grid(*c, 6, 5)}))
+        .map(|(name, c)| json!({"name": name, "mesh": grid_mesh(*c, 6, 5)}))
         .collect();
     // the box [1.6, 3.6] × [0, 0.85] × [1.5, 2.4], each face facing out
     let (x0, x1, y1, z0, z1) = (1.6, 3.6, 0.85, 1.5, 2.4);
@@ -150,9 +124,9 @@ fn a_box_standing_on_a_meshed_floor_keeps_the_furnace() {
         "output": {"image": {"width": 16, "height": 16}}
     });
     let o = run(doc);
-    let foot = (x1 - x0) * (z1 - z0) / (w * d);
+    let foot = (x1 - x0) * (z1 - z0) / (5.0 * 4.0);
     for s in &o.result.surfaces {
-        let want = if s.name == "wall-0" { 2.0 - foot } else { 2.0 };
+        let want = if s.name == "floor" { 2.0 - foot } else { 2.0 };
         assert!(
             (s.mean[0] - want).abs() < 1e-3 * want,
             "{}: {} against {want}",

@@ -7,7 +7,7 @@ mod tracer;
 use rand::rngs::SmallRng;
 use rand::SeedableRng;
 use serde_json::{json, Value};
-use support::scene_file;
+use support::{grid_mesh, room_walls, scene_file, WINDOW};
 use tracer::{compare, reference, Comparison, Tracer, V3};
 use wavrad::job;
 use wavrad::progress::Silent;
@@ -392,29 +392,6 @@ fn a_low_box_on_a_large_floor() {
     assert!(c.net() < 0.007, "{} net of the noise", c.net());
 }
 
-/// A `w × h` grid of a parallelogram's corners as one mesh of triangles, facing as the
-/// parallelogram does.
-fn grid_mesh(c: [[f64; 3]; 4], w: usize, h: usize) -> Value {
-    let at = |i: usize, j: usize| {
-        let (s, t) = (i as f64 / w as f64, j as f64 / h as f64);
-        [0, 1, 2].map(|k| c[0][k] + s * (c[1][k] - c[0][k]) + t * (c[3][k] - c[0][k]))
-    };
-    let positions: Vec<[f64; 3]> = (0..=h)
-        .flat_map(|j| (0..=w).map(move |i| (i, j)))
-        .map(|(i, j)| at(i, j))
-        .collect();
-    let mut triangles = Vec::new();
-    for j in 0..h {
-        for i in 0..w {
-            let a = j * (w + 1) + i;
-            let (b, c, d) = (a + 1, a + w + 2, a + w + 1);
-            triangles.push([a, b, c]);
-            triangles.push([a, c, d]);
-        }
-    }
-    json!({"positions": positions, "triangles": triangles})
-}
-
 /// The furnished room's window (`scenes/models/room.obj`) with nothing but its light: a pane
 /// with three bars 4 cm wide standing on it, every surface black but the far wall, so that
 /// the far wall shows the pane's direct light through the bars. The bars hide 6 % of it.
@@ -428,27 +405,12 @@ fn grid_mesh(c: [[f64; 3]; 4], w: usize, h: usize) -> Value {
 /// requirement is the gallery's, 1 % beyond four standard errors.
 #[test]
 fn thin_bars_across_a_window_shade_the_far_wall() {
-    let (w, d, h) = (5.0, 4.0, 2.7);
-    let (y0, y1, z0, z1) = (0.81, 2.295, 1.2, 2.8);
-    let walls = [
-        (
-            "floor",
-            [[0.0, 0.0, 0.0], [0.0, 0.0, d], [w, 0.0, d], [w, 0.0, 0.0]],
-        ),
-        (
-            "ceiling",
-            [[0.0, h, 0.0], [w, h, 0.0], [w, h, d], [0.0, h, d]],
-        ),
-        (
-            "south",
-            [[0.0, 0.0, 0.0], [w, 0.0, 0.0], [w, h, 0.0], [0.0, h, 0.0]],
-        ),
-        (
-            "north",
-            [[0.0, 0.0, d], [0.0, h, d], [w, h, d], [w, 0.0, d]],
-        ),
-        ("east", [[w, 0.0, 0.0], [w, 0.0, d], [w, h, d], [w, h, 0.0]]),
-    ];
+    let (y0, y1, z0, z1) = WINDOW;
+    // the west wall, around the pane, is left out (see above)
+    let walls: Vec<_> = room_walls()
+        .into_iter()
+        .filter(|(name, _)| *name != "west")
+        .collect();
     let pane = [[0.0, y0, z1], [0.0, y0, z0], [0.0, y1, z0], [0.0, y1, z1]];
     // three closed boxes standing on the pane: one bar up its middle, two across
     let (zm, ym) = (0.5 * (z0 + z1), 0.5 * (y0 + y1));
@@ -542,31 +504,7 @@ fn thin_bars_across_a_window_shade_the_far_wall() {
 /// errors.
 #[test]
 fn a_rug_just_above_a_meshed_floor_darkens_only_the_floor_under_it() {
-    let (w, d, h) = (5.0, 4.0, 2.7);
-    let (y0, y1, z0, z1) = (0.81, 2.295, 1.2, 2.8);
-    let walls = [
-        (
-            "floor",
-            [[0.0, 0.0, 0.0], [0.0, 0.0, d], [w, 0.0, d], [w, 0.0, 0.0]],
-        ),
-        (
-            "ceiling",
-            [[0.0, h, 0.0], [w, h, 0.0], [w, h, d], [0.0, h, d]],
-        ),
-        (
-            "south",
-            [[0.0, 0.0, 0.0], [w, 0.0, 0.0], [w, h, 0.0], [0.0, h, 0.0]],
-        ),
-        (
-            "north",
-            [[0.0, 0.0, d], [0.0, h, d], [w, h, d], [w, 0.0, d]],
-        ),
-        ("east", [[w, 0.0, 0.0], [w, 0.0, d], [w, h, d], [w, h, 0.0]]),
-        (
-            "west",
-            [[0.0, 0.0, 0.0], [0.0, h, 0.0], [0.0, h, d], [0.0, 0.0, d]],
-        ),
-    ];
+    let (y0, y1, z0, z1) = WINDOW;
     let rug = [
         [1.3, 0.005, 0.9],
         [1.3, 0.005, 2.9],
@@ -574,7 +512,7 @@ fn a_rug_just_above_a_meshed_floor_darkens_only_the_floor_under_it() {
         [3.9, 0.005, 0.9],
     ];
     for meshed_rug in [true, false] {
-        let mut surfaces: Vec<Value> = walls
+        let mut surfaces: Vec<Value> = room_walls()
             .iter()
             .map(|(name, c)| json!({"name": name, "mesh": grid_mesh(*c, 12, 10), "reflectance": 0.6}))
             .collect();

@@ -29,7 +29,9 @@
 use crate::math::basis::legendre::interval_gram;
 use crate::math::triangle::{TriangleBasis, TriangleRule};
 use crate::three_d::bvh::Bvh;
-use crate::three_d::geometry::{add, cross, dot, normalize, scale, Parallelogram, Piece, V3};
+use crate::three_d::geometry::{
+    add, covariance, cross, dot, normalize, scale, Parallelogram, Piece, Sym, V3,
+};
 use crate::three_d::steps::STEP;
 use rayon::prelude::*;
 
@@ -513,31 +515,16 @@ pub(super) fn contacts(all: &Bvh, i: usize) -> Vec<[[f64; 2]; 2]> {
 /// only along its border does not stand on it).
 fn clip_inside(a: [f64; 2], b: [f64; 2], tri: bool) -> Option<[[f64; 2]; 2]> {
     let d = [b[0] - a[0], b[1] - a[1]];
-    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
     // each side as p λ ≤ q along the segment a + λ d
-    let mut sides = vec![
+    let sides = [
         (-d[0], a[0]),
         (d[0], 1.0 - a[0]),
         (-d[1], a[1]),
         (d[1], 1.0 - a[1]),
-    ];
-    if tri {
-        sides.push((d[0] + d[1], 1.0 - a[0] - a[1]));
-    }
-    for (p, q) in sides {
-        if p == 0.0 {
-            if q < 0.0 {
-                return None;
-            }
-        } else if p < 0.0 {
-            lo = lo.max(q / p);
-        } else {
-            hi = hi.min(q / p);
-        }
-    }
-    if lo >= hi {
-        return None;
-    }
+    ]
+    .into_iter()
+    .chain(tri.then_some((d[0] + d[1], 1.0 - a[0] - a[1])));
+    let (lo, hi) = clip(sides).filter(|(lo, hi)| lo < hi)?;
     // (the ends themselves when inside: an edge wholly within the patch is kept as it is)
     let at = |l: f64| match l {
         0.0 => a,
@@ -588,32 +575,23 @@ fn lidded(all: &Bvh, i: usize, widths: &[f64]) -> bool {
 /// made of small triangles hides what is under it as the one rectangle would.
 fn widths(quads: &[Parallelogram], groups: &[Vec<u32>]) -> Vec<f64> {
     use nalgebra::{Matrix3, Vector3};
+    let matrix = |m: Sym| Matrix3::new(m[0], m[3], m[4], m[3], m[1], m[5], m[4], m[5], m[2]);
     let mut out = vec![0.0; quads.len()];
     for g in groups {
-        // the area, first and second moments of each patch (a triangle's covariance is
-        // Σ dᵢ dᵢᵀ / 12 over its corners' offsets from its centroid; a parallelogram's
-        // (e₁ e₁ᵀ + e₃ e₃ᵀ) / 12)
+        // the area, first and second moments of the surface, patch by patch
         let (mut area, mut first, mut second) = (0.0, Vector3::zeros(), Matrix3::zeros());
         for &p in g {
             let q = &quads[p as usize];
-            let (e1, e3) = (Vector3::from(q.e1), Vector3::from(q.e3));
-            let p0 = Vector3::from(q.outline()[0]);
-            let (centre, cov) = if q.tri {
-                let c = p0 + (e1 + e3) / 3.0;
-                let d = [p0 - c, p0 + e1 - c, p0 + e3 - c];
-                (
-                    c,
-                    d.iter().map(|d| d * d.transpose()).sum::<Matrix3<f64>>() / 12.0,
-                )
-            } else {
-                (
-                    p0 + (e1 + e3) / 2.0,
-                    (e1 * e1.transpose() + e3 * e3.transpose()) / 12.0,
-                )
-            };
+            let c = Piece::whole(p as usize).corners(quads);
+            let n = if q.tri { 3 } else { 4 };
+            let centre = c[..n]
+                .iter()
+                .map(|&v| Vector3::from(v))
+                .sum::<Vector3<f64>>()
+                / n as f64;
             area += q.area;
             first += q.area * centre;
-            second += q.area * (cov + centre * centre.transpose());
+            second += q.area * (matrix(covariance(&c, q.tri)) + centre * centre.transpose());
         }
         let mean = first / area;
         let cov = second / area - mean * mean.transpose();
@@ -659,26 +637,34 @@ const LID_GAP: f64 = 0.02;
 pub(super) fn meets(line: &[[f64; 2]; 2], s: [f64; 2], t: [f64; 2]) -> bool {
     let [a, b] = *line;
     let d = [b[0] - a[0], b[1] - a[1]];
-    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
     let s = [s[0] - MEET_SLACK, s[1] + MEET_SLACK];
     let t = [t[0] - MEET_SLACK, t[1] + MEET_SLACK];
-    for (axis, range) in [(0, s), (1, t)] {
-        for (p, q) in [
+    let sides = [(0, s), (1, t)].into_iter().flat_map(|(axis, range)| {
+        [
             (-d[axis], a[axis] - range[0]),
             (d[axis], range[1] - a[axis]),
-        ] {
-            if p == 0.0 {
-                if q < 0.0 {
-                    return false;
-                }
-            } else if p < 0.0 {
-                lo = lo.max(q / p);
-            } else {
-                hi = hi.min(q / p);
+        ]
+    });
+    clip(sides).is_some_and(|(lo, hi)| lo <= hi)
+}
+
+/// Liang–Barsky clipping of the segment λ ∈ [0, 1] by the `sides` p λ ≤ q: the range of λ
+/// left, (lo, hi), empty when lo > hi; `None` when a side parallel to the segment (p = 0)
+/// leaves it all out.
+fn clip(sides: impl IntoIterator<Item = (f64, f64)>) -> Option<(f64, f64)> {
+    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+    for (p, q) in sides {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
             }
+        } else if p < 0.0 {
+            lo = lo.max(q / p);
+        } else {
+            hi = hi.min(q / p);
         }
     }
-    lo <= hi
+    Some((lo, hi))
 }
 
 /// Whether the point (s, t) of surface `i` is covered: five rays over its hemisphere all

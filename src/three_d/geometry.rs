@@ -37,6 +37,48 @@ pub(crate) fn normalize(a: V3) -> V3 {
     scale(a, 1.0 / norm(a))
 }
 
+/// A symmetric 3 × 3 matrix: xx, yy, zz, xy, xz, yz.
+pub(crate) type Sym = [f64; 6];
+
+/// The symmetric matrix a bᵀ + b aᵀ over two, or a aᵀ for a = b.
+pub(crate) fn sym(a: V3, b: V3) -> Sym {
+    [
+        a[0] * b[0],
+        a[1] * b[1],
+        a[2] * b[2],
+        0.5 * (a[0] * b[1] + a[1] * b[0]),
+        0.5 * (a[0] * b[2] + a[2] * b[0]),
+        0.5 * (a[1] * b[2] + a[2] * b[1]),
+    ]
+}
+
+pub(crate) fn sym_of(a: V3) -> Sym {
+    sym(a, a)
+}
+
+pub(crate) fn sym_axpy(a: f64, x: &Sym, y: &Sym) -> Sym {
+    [0, 1, 2, 3, 4, 5].map(|i| a * x[i] + y[i])
+}
+
+/// The covariance about its centroid of a uniform point on a parallelogram with corners
+/// c₀ … c₃ in order, (e₁ e₁ᵀ + e₂ e₂ᵀ) / 12, or on a triangle c₀ c₁ c₂, Σ_i v_i v_iᵀ / 12 with
+/// v_i the vertices' offsets from the centroid (the barycentric coordinates' variance is
+/// 1/18 and their covariance −1/36).
+pub(crate) fn covariance(c: &[V3; 4], triangle: bool) -> Sym {
+    if triangle {
+        let centroid = scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0);
+        let mut out = [0.0; 6];
+        for v in &c[..3] {
+            let o = sub(*v, centroid);
+            out = sym_axpy(1.0 / 12.0, &sym_of(o), &out);
+        }
+        out
+    } else {
+        let (a, b) = (sym_of(sub(c[1], c[0])), sym_of(sub(c[3], c[0])));
+        [0, 1, 2, 3, 4, 5].map(|i| (a[i] + b[i]) / 12.0)
+    }
+}
+
 /// A parallelogram surface with the dual basis that maps a point of its plane back to (s, t);
 /// or, with `tri`, the triangle s + t ≤ 1 of the same map (a patch of a triangle or a mesh).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -89,3 +89,59 @@ pub fn surface_names(doc: &Value) -> Vec<&str> {
         .map(|s| s["name"].as_str().unwrap())
         .collect()
 }
+
+/// The walls of a 5 × 4 × 2.7 room (x × z × y), each a parallelogram's corners facing in:
+/// floor, ceiling, south (z = 0), north, east (x = 5) and west (x = 0).
+pub fn room_walls() -> [(&'static str, [[f64; 3]; 4]); 6] {
+    let (w, d, h) = (5.0, 4.0, 2.7);
+    [
+        (
+            "floor",
+            [[0.0, 0.0, 0.0], [0.0, 0.0, d], [w, 0.0, d], [w, 0.0, 0.0]],
+        ),
+        (
+            "ceiling",
+            [[0.0, h, 0.0], [w, h, 0.0], [w, h, d], [0.0, h, d]],
+        ),
+        (
+            "south",
+            [[0.0, 0.0, 0.0], [w, 0.0, 0.0], [w, h, 0.0], [0.0, h, 0.0]],
+        ),
+        (
+            "north",
+            [[0.0, 0.0, d], [0.0, h, d], [w, h, d], [w, 0.0, d]],
+        ),
+        ("east", [[w, 0.0, 0.0], [w, 0.0, d], [w, h, d], [w, h, 0.0]]),
+        (
+            "west",
+            [[0.0, 0.0, 0.0], [0.0, h, 0.0], [0.0, h, d], [0.0, 0.0, d]],
+        ),
+    ]
+}
+
+/// The window of [`room_walls`] in its west wall, as `scenes/models/room.obj` has it: y from
+/// y0 to y1, z from z0 to z1.
+pub const WINDOW: (f64, f64, f64, f64) = (0.81, 2.295, 1.2, 2.8);
+
+/// A `w × h` grid of a parallelogram's corners as one mesh of triangles, facing as the
+/// parallelogram does.
+pub fn grid_mesh(c: [[f64; 3]; 4], w: usize, h: usize) -> Value {
+    let at = |i: usize, j: usize| {
+        let (s, t) = (i as f64 / w as f64, j as f64 / h as f64);
+        [0, 1, 2].map(|k| c[0][k] + s * (c[1][k] - c[0][k]) + t * (c[3][k] - c[0][k]))
+    };
+    let positions: Vec<[f64; 3]> = (0..=h)
+        .flat_map(|j| (0..=w).map(move |i| (i, j)))
+        .map(|(i, j)| at(i, j))
+        .collect();
+    let mut triangles = Vec::new();
+    for j in 0..h {
+        for i in 0..w {
+            let a = j * (w + 1) + i;
+            let (b, c, d) = (a + 1, a + w + 2, a + w + 1);
+            triangles.push([a, b, c]);
+            triangles.push([a, c, d]);
+        }
+    }
+    serde_json::json!({"positions": positions, "triangles": triangles})
+}

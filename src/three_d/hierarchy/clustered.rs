@@ -36,7 +36,9 @@ use super::Hierarchy;
 use crate::scene::Rgb;
 use crate::three_d::cluster::{is_cluster, Bound, Clusters};
 use crate::three_d::cover::{Exposure, Partial};
-use crate::three_d::geometry::{add, dot, norm, scale, sub, Parallelogram, V3};
+use crate::three_d::geometry::{
+    add, covariance, dot, norm, scale, sub, sym, sym_axpy, Parallelogram, Sym, V3,
+};
 use crate::three_d::visibility::{pair_seed, unseen_bound, SplitMix};
 use rayon::prelude::*;
 
@@ -144,54 +146,12 @@ pub(super) fn members(clusters: &Clusters, quads: &[Parallelogram]) -> Vec<Membe
         .collect()
 }
 
-/// A symmetric 3 × 3 matrix: xx, yy, zz, xy, xz, yz.
-type Sym = [f64; 6];
-
-/// The symmetric matrix a bᵀ + b aᵀ over two, or a aᵀ for a = b.
-fn sym(a: V3, b: V3) -> Sym {
-    [
-        a[0] * b[0],
-        a[1] * b[1],
-        a[2] * b[2],
-        0.5 * (a[0] * b[1] + a[1] * b[0]),
-        0.5 * (a[0] * b[2] + a[2] * b[0]),
-        0.5 * (a[1] * b[2] + a[2] * b[1]),
-    ]
-}
-
-fn sym_of(a: V3) -> Sym {
-    sym(a, a)
-}
-
 fn sym_mul(m: &Sym, v: V3) -> V3 {
     [
         m[0] * v[0] + m[3] * v[1] + m[4] * v[2],
         m[3] * v[0] + m[1] * v[1] + m[5] * v[2],
         m[4] * v[0] + m[5] * v[1] + m[2] * v[2],
     ]
-}
-
-fn sym_axpy(a: f64, x: &Sym, y: &Sym) -> Sym {
-    [0, 1, 2, 3, 4, 5].map(|i| a * x[i] + y[i])
-}
-
-/// The covariance about its centroid of a uniform point on a parallelogram with corners
-/// c₀ … c₃ in order, (e₁ e₁ᵀ + e₂ e₂ᵀ) / 12, or on a triangle c₀ c₁ c₂, Σ_i v_i v_iᵀ / 12 with
-/// v_i the vertices' offsets from the centroid (the barycentric coordinates' variance is
-/// 1/18 and their covariance −1/36).
-fn covariance(c: &[V3; 4], triangle: bool) -> Sym {
-    if triangle {
-        let centroid = scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0);
-        let mut out = [0.0; 6];
-        for v in &c[..3] {
-            let o = sub(*v, centroid);
-            out = sym_axpy(1.0 / 12.0, &sym_of(o), &out);
-        }
-        out
-    } else {
-        let (a, b) = (sym_of(sub(c[1], c[0])), sym_of(sub(c[3], c[0])));
-        [0, 1, 2, 3, 4, 5].map(|i| (a[i] + b[i]) / 12.0)
-    }
 }
 
 impl Emitter {
@@ -573,7 +533,11 @@ impl Hierarchy<'_> {
             return self.clusters.takes_part(id);
         }
         let el = &self.elements[id as usize];
-        el.exposure != Exposure::Covered || (!receiving && el.peak > 0.0)
+        if receiving {
+            el.receives()
+        } else {
+            el.sends()
+        }
     }
 
     fn cluster_identity(&self, id: u32) -> u64 {
@@ -873,6 +837,7 @@ fn add_constant(el: &mut super::tree::Element, h: Rgb) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::three_d::geometry::sym_of;
 
     /// A member of a test source: area, B, centroid, normal and corners.
     type Member = (f64, Rgb, V3, V3, [V3; 4]);

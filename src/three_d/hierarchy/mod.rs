@@ -164,10 +164,7 @@ impl<'g> Hierarchy<'g> {
         let mut clusters = Clusters::new(&geo.quads, &groups);
         // a patch wholly covered by a solid resting on it takes no part in the transfer,
         // unless it emits (a covered part keeps B = E)
-        clusters.weigh(&geo.quads, |p| {
-            let el: &Element = &elements[p];
-            f64::from(el.exposure != Exposure::Covered || el.peak > 0.0)
-        });
+        clusters.weigh(&geo.quads, |p| f64::from(elements[p].sends()));
         let members = clustered::members(&clusters, &geo.quads);
         let mut h = Hierarchy {
             geo,

@@ -423,8 +423,7 @@ impl Hierarchy<'_> {
     /// The oracle's verdict on one pair, with the element tree as it is: read-only, so that
     /// a whole frontier of pairs is judged in parallel (the rays are most of the work).
     fn judge(&self, r: u32, s: u32, (f, smooth): (f64, f64)) -> (Verdict, u64) {
-        let covered = |e: u32| self.elements[e as usize].exposure == Exposure::Covered;
-        if covered(r) || (covered(s) && self.elements[s as usize].peak == 0.0) {
+        if !self.elements[r as usize].receives() || !self.elements[s as usize].sends() {
             return (Verdict::Inert, 0);
         }
         let thr = self.tolerance(r);

@@ -44,6 +44,16 @@ impl Element {
         self.children == NONE
     }
 
+    /// Whether light reaches it: not wholly covered ([`crate::three_d::cover`]).
+    pub(super) fn receives(&self) -> bool {
+        self.exposure != Exposure::Covered
+    }
+
+    /// Whether it sends light: not wholly covered, or emitting (a covered part keeps B = E).
+    pub(super) fn sends(&self) -> bool {
+        self.receives() || self.peak > 0.0
+    }
+
     /// The projection of the whole element's B (or H, with `e` = 0) from the exposed part's
     /// polynomial `v`: E on the covered part, `v` on the rest, i.e. e + G (v − e).
     pub(super) fn reported(&self, v: &[Rgb], e: &[Rgb]) -> Vec<Rgb> {
