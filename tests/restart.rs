@@ -245,7 +245,9 @@ async fn a_render_answered_503_survives_a_killed_server() {
     // crash right after must not lose it
     let dir = tempfile::tempdir().unwrap();
     let http = reqwest::Client::new();
-    let mut server = start_with(dir.path(), &["--sync-timeout", "200ms"]);
+    // a wait of 1 ms that no solve can beat: the job below takes 0.14 s alone on this machine,
+    // under the 200 ms this test waited before, which it beat whenever nothing else ran
+    let mut server = start_with(dir.path(), &["--sync-timeout", "1ms"]);
     let res = http
         .post(format!("{}/api/v1/render", server.base))
         .header("content-type", "application/json")
