@@ -226,6 +226,8 @@ pub struct Clusters {
     /// The areas of `order` that send or receive light ([`Clusters::weigh`]) summed up to
     /// each position (one more than the patches).
     prefix: Vec<f64>,
+    /// Each patch's place in `order`.
+    position: Vec<u32>,
     /// The root of each group's tree: a cluster, or the group's only patch.
     pub(super) roots: Vec<u32>,
     /// Where the refinement starts: the patch of every surface of one patch (a parallelogram
@@ -314,6 +316,7 @@ impl Clusters {
             nodes: Vec::new(),
             order: Vec::new(),
             prefix: vec![0.0],
+            position: Vec::new(),
             roots: Vec::new(),
             starts: Vec::new(),
             centres: Vec::new(),
@@ -493,10 +496,25 @@ impl Clusters {
         let mut sum = 0.0;
         self.prefix.clear();
         self.prefix.push(0.0);
-        for &p in &self.order {
+        self.position = vec![0; quads.len()];
+        for (k, &p) in self.order.iter().enumerate() {
             sum += quads[p as usize].area * share(p as usize);
             self.prefix.push(sum);
+            self.position[p as usize] = k as u32;
         }
+    }
+
+    /// The area of cluster `reference`, or of the patch `reference` names, that takes part
+    /// in the transfer ([`Clusters::weigh`]).
+    pub(super) fn weight(&self, reference: u32) -> f64 {
+        let (a, b) = if is_cluster(reference) {
+            let (a, b) = self.get(reference).members;
+            (a as usize, b as usize)
+        } else {
+            let p = self.position[reference as usize] as usize;
+            (p, p + 1)
+        };
+        self.prefix[b] - self.prefix[a]
     }
 
     /// Whether some member of cluster `reference` takes part in the transfer

@@ -598,27 +598,72 @@ impl Hierarchy<'_> {
 
     /// The visible fraction between two ends: of [`CLUSTER_RAYS`] pairs of points, those
     /// that face each other, the share with nothing between them (1 when none face).
-    fn cluster_visibility(&self, r: u32, s: u32, seed: u64) -> (f64, usize, u64) {
+    ///
+    /// A cluster's points are drawn in strata, an equal number from each of its two children
+    /// (weighted back by the children's areas), not by area over all its members. A link
+    /// gives every receiving member the same V, so it is right for a member only where V
+    /// does not depend on the member. Where one child hides the other from the source (a
+    /// seat over its feet, seen from the ceiling), drawing by area found the small child so
+    /// rarely that the link passed as wholly visible: in a furnace the foot's top, under a
+    /// seat 5 mm above it, gathered 0.46 of a form factor more than its whole hemisphere
+    /// through thousands of such links, each within the tolerance, all erring the same way
+    /// (B 2.6 against 2). With strata, a child that its sibling hides shows up as a blocked
+    /// ray, and the pair is judged partly visible, which splits it where it matters.
+    pub(super) fn cluster_visibility(&self, r: u32, s: u32, seed: u64) -> (f64, usize, u64) {
         let mut rng = SplitMix(seed);
-        let (mut open, mut valid, mut rays) = (0usize, 0usize, 0u64);
-        for _ in 0..CLUSTER_RAYS {
-            let (x, i, n) = self.sample(r, true, &mut rng);
-            let (y, j, m) = self.sample(s, false, &mut rng);
+        let (sr, ss) = (self.strata(r), self.strata(s));
+        let mut open = [[0usize; 2]; 2];
+        let mut valid = [[0usize; 2]; 2];
+        let mut rays = 0u64;
+        for k in 0..CLUSTER_RAYS {
+            let (a, b) = (k % sr.len(), (k / sr.len()) % ss.len());
+            let (x, i, n) = self.sample(sr[a].0, true, &mut rng);
+            let (y, j, m) = self.sample(ss[b].0, false, &mut rng);
             let d = sub(y, x);
             if dot(n, d) <= 0.0 || dot(m, d) >= 0.0 || norm(d) == 0.0 {
                 continue;
             }
-            valid += 1;
+            valid[a][b] += 1;
             rays += 1;
             if !self.geo.bvh.occluded(x, y, [i, j]) {
-                open += 1;
+                open[a][b] += 1;
             }
         }
-        if valid == 0 {
+        // each stratum's fraction, weighted by its ends' areas (over the strata that had a
+        // pair facing each other)
+        let (mut v, mut weight) = (0.0, 0.0);
+        for (a, &(_, wa)) in sr.iter().enumerate() {
+            for (b, &(_, wb)) in ss.iter().enumerate() {
+                if valid[a][b] > 0 {
+                    v += wa * wb * open[a][b] as f64 / valid[a][b] as f64;
+                    weight += wa * wb;
+                }
+            }
+        }
+        let valid: usize = valid.iter().flatten().sum();
+        if valid == 0 || weight <= 0.0 {
             (1.0, 0, rays)
         } else {
-            (open as f64 / valid as f64, valid, rays)
+            (v / weight, valid, rays)
         }
+    }
+
+    /// The strata of an end's points ([`Hierarchy::cluster_visibility`]): a cluster's two
+    /// children with the areas of them that take part, or the end itself.
+    fn strata(&self, id: u32) -> smallvec::SmallVec<[(u32, f64); 2]> {
+        let mut out = smallvec::SmallVec::new();
+        if is_cluster(id) {
+            for c in self.clusters.get(id).children {
+                let w = self.clusters.weight(c);
+                if w > 0.0 {
+                    out.push((c, w));
+                }
+            }
+        }
+        if out.is_empty() {
+            out.push((id, 1.0));
+        }
+        out
     }
 
     /// The constant H (as h₀ = H √A) that cluster link `l` delivers to each member of its
@@ -1151,5 +1196,49 @@ mod tests {
             split >= 2 && over >= 1,
             "{split} splits, {linked} partly visible links, {over} over the tolerance"
         );
+    }
+
+    /// A receiving cluster of a board and a small plate 2 cm under it, lit from above: the
+    /// board hides the plate from the light. Its points drawn by area over the members
+    /// (the plate is 1/400 of the area) would all land on the board in 96 % of the draws of
+    /// 16, and the link would take V = 1 for the plate too; drawn in strata, half of them
+    /// land on the plate, and every seed finds the pair partly visible, with V the board's
+    /// share of the area (the plate's rays are all blocked).
+    #[test]
+    fn a_member_its_cluster_hides_is_drawn_and_seen_hidden() {
+        let square = |y: f64, h: f64| {
+            serde_json::json!({"positions": [[-h, y, -h], [-h, y, h], [h, y, h], [h, y, -h]],
+                "triangles": [[0, 1, 2], [0, 2, 3]]})
+        };
+        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "board", "mesh": square(1.0, 0.5), "reflectance": 0.5},
+            {"name": "plate", "mesh": square(0.98, 0.025), "reflectance": 0.5},
+            {"name": "light", "corners": [[-0.25, 3, -0.25], [0.25, 3, -0.25], [0.25, 3, 0.25], [-0.25, 3, 0.25]],
+             "reflectance": 0.0, "emission": 1.0}]},
+            "solver": {"method": "hierarchical"}});
+        let quads = match crate::scene::parse_value(&doc, &crate::scene::Limits::default())
+            .unwrap()
+            .scene
+            .kind
+        {
+            crate::scene::SceneKind::ThreeD(scene) => scene.patches,
+            _ => unreachable!(),
+        };
+        let geo = crate::three_d::projection::Geometry::new(&quads);
+        let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
+        let h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3);
+        let both = *h
+            .clusters
+            .starts
+            .iter()
+            .find(|&&r| is_cluster(r) && h.clusters.members(r).len() == 4)
+            .unwrap();
+        let light = 4;
+        let board = 1.0 / (1.0 + 0.05f64.powi(2));
+        for seed in 0..20 {
+            let (v, valid, _) = h.cluster_visibility(both, light, seed);
+            assert_eq!(valid, CLUSTER_RAYS, "every pair faces");
+            assert!((v - board).abs() < 1e-9, "seed {seed}: V = {v}");
+        }
     }
 }
