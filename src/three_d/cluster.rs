@@ -368,6 +368,10 @@ impl Clusters {
             let top = tree.build_top(&scene, &mut meshes, &mut order, singles.len() as u32);
             tree.starts.push(top);
         }
+        tree.position = vec![0; quads.len()];
+        for (k, &p) in order.iter().enumerate() {
+            tree.position[p as usize] = k as u32;
+        }
         tree.order = order;
         tree.centres = centres;
         tree.weigh(quads, |_| 1.0);
@@ -496,11 +500,9 @@ impl Clusters {
         let mut sum = 0.0;
         self.prefix.clear();
         self.prefix.push(0.0);
-        self.position = vec![0; quads.len()];
-        for (k, &p) in self.order.iter().enumerate() {
+        for &p in &self.order {
             sum += quads[p as usize].area * share(p as usize);
             self.prefix.push(sum);
-            self.position[p as usize] = k as u32;
         }
     }
 

@@ -640,11 +640,11 @@ impl Hierarchy<'_> {
                 }
             }
         }
-        let valid: usize = valid.iter().flatten().sum();
-        if valid == 0 || weight <= 0.0 {
-            (1.0, 0, rays)
+        // (every stratum's area is positive: no weight means no pair faced)
+        if weight > 0.0 {
+            (v / weight, valid.iter().flatten().sum(), rays)
         } else {
-            (v / weight, valid, rays)
+            (1.0, 0, rays)
         }
     }
 
@@ -1052,16 +1052,10 @@ mod tests {
             surfaces.push(serde_json::json!({"name": "board",
                 "corners": [[0, -1, 2], [0, 1, 2], [1, 1, 2], [1, -1, 2]], "reflectance": 0.5}));
         }
-        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": surfaces},
-            "solver": {"method": "hierarchical"}});
-        match crate::scene::parse_value(&doc, &crate::scene::Limits::default())
-            .unwrap()
-            .scene
-            .kind
-        {
-            crate::scene::SceneKind::ThreeD(scene) => scene.patches,
-            _ => unreachable!(),
-        }
+        super::super::tests::patches(
+            &serde_json::json!({"scene": {"kind": "3d", "surfaces": surfaces},
+            "solver": {"method": "hierarchical"}}),
+        )
     }
 
     /// A cluster link's kernel ([`Hierarchy::cluster_link_kernel`], what eq. (5) samples),
@@ -1216,14 +1210,7 @@ mod tests {
             {"name": "light", "corners": [[-0.25, 3, -0.25], [0.25, 3, -0.25], [0.25, 3, 0.25], [-0.25, 3, 0.25]],
              "reflectance": 0.0, "emission": 1.0}]},
             "solver": {"method": "hierarchical"}});
-        let quads = match crate::scene::parse_value(&doc, &crate::scene::Limits::default())
-            .unwrap()
-            .scene
-            .kind
-        {
-            crate::scene::SceneKind::ThreeD(scene) => scene.patches,
-            _ => unreachable!(),
-        };
+        let quads = super::super::tests::patches(&doc);
         let geo = crate::three_d::projection::Geometry::new(&quads);
         let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
         let h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3);

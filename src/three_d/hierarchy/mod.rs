@@ -940,7 +940,7 @@ mod tests {
     }
 
     /// The patches of a 3D job document.
-    fn patches(doc: &serde_json::Value) -> Vec<Quad> {
+    pub(super) fn patches(doc: &serde_json::Value) -> Vec<Quad> {
         let job = crate::scene::parse_value(doc, &crate::scene::Limits::default()).unwrap();
         match job.scene.kind {
             SceneKind::ThreeD(scene) => scene.patches,
