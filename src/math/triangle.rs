@@ -150,7 +150,7 @@ pub(crate) const fn dimension(m: usize) -> usize {
 }
 
 /// The point of the parent, in its (s, t), that is point (s, t) of child `child`: F_c(s, t).
-fn to_parent(child: usize, s: f64, t: f64) -> [f64; 2] {
+pub(crate) fn to_parent(child: usize, s: f64, t: f64) -> [f64; 2] {
     let [a, b, c] = CHILDREN[child];
     [
         a[0] + s * (b[0] - a[0]) + t * (c[0] - a[0]),
@@ -161,7 +161,6 @@ fn to_parent(child: usize, s: f64, t: f64) -> [f64; 2] {
 /// The child that holds the parent's point (s, t) (a point of the triangle), and that point in
 /// the child's (s, t): the inverse of [`to_parent`]. A point on an edge between two children
 /// goes to the corner child rather than the centre one, and (½, ½) to child 1.
-#[cfg(test)]
 pub(crate) fn locate(s: f64, t: f64) -> (usize, [f64; 2]) {
     if s >= 0.5 {
         (1, [2.0 * s - 1.0, 2.0 * t])

@@ -436,8 +436,8 @@ impl Mask {
         Exposure::Partial(Box::new(Partial {
             inverse: pseudo_inverse(&gram, kk),
             gram,
-            // a triangle receiver's visible fraction is one number
-            // ([`crate::three_d::visibility::Seen`]), never a step over cells
+            // no masked Gram matrices of a triangle's step cells: a partly covered triangle
+            // takes a link's whole visible fraction ([`crate::three_d::visibility::Seen`])
             steps: Vec::new(),
         }))
     }

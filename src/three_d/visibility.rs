@@ -18,7 +18,7 @@ use crate::three_d::bvh::Bvh;
 use crate::three_d::cover::{Mask, Partial};
 use crate::three_d::geometry::Piece;
 use crate::three_d::geometry::{cross, dot, norm, sub, Parallelogram, V3};
-use crate::three_d::steps::{Steps, CELLS, STEP};
+use crate::three_d::steps::{quarter_of, tri_cell, Steps, CELLS, STEP};
 
 /// Whether the parallelogram `q` may meet the convex hull of `points` (conservative). With
 /// `thorough`, every candidate axis of the hull is tried (its edges and faces through any of
@@ -241,15 +241,20 @@ pub(super) fn pair_seed(a: u64, b: u64) -> u64 {
     r.next_u64()
 }
 
-/// The quarter (`ds + 2 dt`) of the receiver that step cell `c` (`i + STEP j`) lies in.
-fn quarter_of(c: usize) -> usize {
-    let (i, j) = (c % STEP, c / STEP);
-    usize::from(2 * i >= STEP) + 2 * usize::from(2 * j >= STEP)
+/// The quarter (the child: `ds + 2 dt` on a parallelogram, the midpoint split's on a
+/// triangle) of the receiver that step cell `c` lies in.
+fn quarter(tri: bool, c: usize) -> usize {
+    if tri {
+        c / 4
+    } else {
+        quarter_of(c)
+    }
 }
 
 /// What the rays between two pieces saw: the visible fraction of the whole transfer, and of
-/// the part of it that arrives on each of the `STEP` × `STEP` cells of the receiver `a`
-/// (index `i + STEP j` by its s and t positions).
+/// the part of it that arrives on each of the [`CELLS`] step cells of the receiver `a`
+/// ([`crate::three_d::steps`]: on a parallelogram index `i + STEP j` by its s and t
+/// positions, on a triangle its grandchildren).
 ///
 /// A shadow edge crosses a receiver as a step; one fraction for the whole link spreads it
 /// evenly (the floor next to a box gets the same share of sky at the box's foot as a cell's
@@ -259,6 +264,8 @@ fn quarter_of(c: usize) -> usize {
 pub struct Seen {
     pub(super) whole: f64,
     cells: [f64; CELLS],
+    /// Whether the receiver is a triangle: its cells are those of [`tri_cell`].
+    tri: bool,
 }
 
 impl Seen {
@@ -266,14 +273,15 @@ impl Seen {
     pub(super) const CLEAR: Seen = Seen {
         whole: 1.0,
         cells: [1.0; CELLS],
+        tri: false,
     };
 
-    /// The mean fraction over each quarter of the receiver (`ds + 2 dt`).
+    /// The mean fraction over each quarter of the receiver (its children).
     #[cfg(test)]
     pub(crate) fn quarters(&self) -> [f64; 4] {
         let mut q = [0.0; 4];
         for (c, v) in self.cells.iter().enumerate() {
-            q[quarter_of(c)] += v / (CELLS / 4) as f64;
+            q[quarter(self.tri, c)] += v / (CELLS / 4) as f64;
         }
         q
     }
@@ -291,15 +299,17 @@ impl Seen {
             block.iter_mut().for_each(|x| *x *= self.whole);
             return;
         }
-        self.apply_step(&steps.m, steps.k, block);
+        let m = if self.tri { &steps.tri } else { &steps.m };
+        self.apply_step(m, steps.k, block);
     }
 
     /// [`Seen::weigh`] for a partly covered receiver: W = Σ_cells V_cell G_cell with the
     /// masked Gram matrices of its step cells ([`Partial`]), which turns the block into the
     /// moments ∫ χ φ_a H of the exposed part. The fractions are those of the exposed part
-    /// ([`visible_fraction_over`]); uniform ones make W = V G.
+    /// ([`visible_fraction_over`]); uniform ones make W = V G. A partly covered triangle has
+    /// no masked Gram matrices of its cells ([`Partial`]): it takes the whole fraction.
     pub(super) fn weigh_masked(&self, partial: &Partial, k: usize, block: &mut [f64]) {
-        if k == 1 || self.cells.iter().all(|&v| v == self.whole) {
+        if k == 1 || partial.steps.is_empty() || self.cells.iter().all(|&v| v == self.whole) {
             let kk = k * k;
             let w: Vec<f64> = partial.gram.iter().map(|g| self.whole * g).collect();
             left_multiply(&w, kk, block);
@@ -332,7 +342,16 @@ fn left_multiply(w: &[f64], kk: usize, block: &mut [f64]) {
 /// The visible fraction of quarter `q` (index `ds + 2 dt`), which no ray sampled, from the
 /// others: the plane through three of them, across from one or two in a row, the mean of a
 /// diagonal pair, `whole` when there are none.
-fn extend(known: &[Option<f64>; 4], q: usize, whole: f64) -> f64 {
+/// On a triangle, whose children do not lie in rows, the mean of the others.
+fn extend(known: &[Option<f64>; 4], q: usize, whole: f64, tri: bool) -> f64 {
+    if tri {
+        let known: Vec<f64> = known.iter().flatten().copied().collect();
+        return if known.is_empty() {
+            whole
+        } else {
+            known.iter().sum::<f64>() / known.len() as f64
+        };
+    }
     // neighbours across s and across t, and the diagonal
     let (across_s, across_t, diagonal) = (known[q ^ 1], known[q ^ 2], known[q ^ 3]);
     match (across_s, across_t, diagonal) {
@@ -370,17 +389,24 @@ pub(crate) fn visible_fraction(
 #[inline(always)]
 pub(super) fn at(q: &Parallelogram, p: &Piece, u: f64, v: f64) -> (f64, f64) {
     if q.tri {
-        let (u, v) = if u + v > 1.0 {
-            (1.0 - u, 1.0 - v)
-        } else {
-            (u, v)
-        };
+        let (u, v) = fold(u, v);
         return p.at_local(u, v);
     }
     (
         p.s[0] + (p.s[1] - p.s[0]) * u,
         p.t[0] + (p.t[1] - p.t[0]) * v,
     )
+}
+
+/// The point (u, v) of the unit square folded along its diagonal onto the reference
+/// triangle u + v ≤ 1.
+#[inline(always)]
+fn fold(u: f64, v: f64) -> (f64, f64) {
+    if u + v > 1.0 {
+        (1.0 - u, 1.0 - v)
+    } else {
+        (u, v)
+    }
 }
 
 /// [`visible_fraction`] over the pairs whose point on `a` is not `covered`: the fraction of
@@ -434,7 +460,12 @@ pub(super) fn visible_fraction_over(
         let r2 = dot(d, d);
         let w = ca * cb / (r2 * (r2 + disc));
         let step = |u: f64| ((u * STEP as f64) as usize).min(STEP - 1);
-        let cell = step(ua) + STEP * step(va);
+        let cell = if qa.tri {
+            let (u, v) = fold(ua, va);
+            tri_cell(u, v)
+        } else {
+            step(ua) + STEP * step(va)
+        };
         *rays += 1;
         if !bvh.occluded(x, y, [a.surface, b.surface]) {
             seen[cell] += w;
@@ -448,32 +479,28 @@ pub(super) fn visible_fraction_over(
     };
     let (mut qs, mut qt) = ([0.0; 4], [0.0; 4]);
     for c in 0..CELLS {
-        qs[quarter_of(c)] += seen[c];
-        qt[quarter_of(c)] += total[c];
+        qs[quarter(qa.tri, c)] += seen[c];
+        qt[quarter(qa.tri, c)] += total[c];
     }
     let fraction = |q: usize| (qt[q] > 0.0).then(|| qs[q] / qt[q]);
     let known: [Option<f64>; 4] = std::array::from_fn(fraction);
     let quarters: [f64; 4] =
-        std::array::from_fn(|q| known[q].unwrap_or_else(|| extend(&known, q, whole)));
+        std::array::from_fn(|q| known[q].unwrap_or_else(|| extend(&known, q, whole, qa.tri)));
     // one value per cell once the stratified points put four in each; a cell no facing
     // pair reached keeps its quarter's
     let fine = n >= 2 * STEP;
-    // a triangle receiver takes the whole fraction: its step cells would be those of the
-    // square its points are folded from
-    if qa.tri {
-        return Seen {
-            whole,
-            cells: [whole; CELLS],
-        };
-    }
     let cells = std::array::from_fn(|c| {
         if fine && total[c] > 0.0 {
             seen[c] / total[c]
         } else {
-            quarters[quarter_of(c)]
+            quarters[quarter(qa.tri, c)]
         }
     });
-    Seen { whole, cells }
+    Seen {
+        whole,
+        cells,
+        tri: qa.tri,
+    }
 }
 
 #[cfg(test)]
@@ -682,6 +709,7 @@ mod tests {
         let seen = Seen {
             whole: 0.5,
             cells: std::array::from_fn(|c| if c % STEP < STEP / 2 { 1.0 } else { 0.0 }),
+            tri: false,
         };
         seen.weigh(&Steps::new(k), &mut block);
         let column: Vec<f64> = (0..4).map(|a| block[a * 4]).collect();
@@ -695,6 +723,7 @@ mod tests {
         Seen {
             whole: 0.25,
             cells: std::array::from_fn(|c| if c % STEP == 0 { 1.0 } else { 0.0 }),
+            tri: false,
         }
         .weigh(&Steps::new(k), &mut block);
         let column: Vec<f64> = (0..4).map(|a| block[a * 4]).collect();
@@ -707,6 +736,7 @@ mod tests {
         Seen {
             whole: 0.25,
             cells: [0.25; CELLS],
+            tri: false,
         }
         .weigh(&Steps::new(k), &mut block);
         assert!(block.iter().all(|&x| x == 0.5));
@@ -744,8 +774,68 @@ mod tests {
         assert_eq!(v.cells[0], v.cells[STEP + 1]);
         // the missing quarters of a receiver behind the source on one side are extended
         let known = [Some(0.2), Some(0.6), None, Some(0.8)];
-        assert!((extend(&known, 2, 0.5) - 0.4).abs() < 1e-15);
-        assert_eq!(extend(&[Some(0.2), None, None, None], 3, 0.5), 0.2);
-        assert_eq!(extend(&[None; 4], 0, 0.5), 0.5);
+        assert!((extend(&known, 2, 0.5, false) - 0.4).abs() < 1e-15);
+        assert_eq!(extend(&[Some(0.2), None, None, None], 3, 0.5, false), 0.2);
+        assert_eq!(extend(&[None; 4], 0, 0.5, false), 0.5);
+        // a triangle's children do not lie in rows: the mean of those known
+        assert!((extend(&known, 2, 0.5, true) - 1.6 / 3.0).abs() < 1e-15);
+    }
+
+    /// A triangle receiver keeps a step of its visible fraction over the sixteen cells of
+    /// two midpoint splits, as a parallelogram does over its grid: the floor's triangle
+    /// (0, 0), (1, 0), (0, 1) under a light, with a blocker over the part x < ½ only (its
+    /// children 0 and 2 lie there, 1 beyond it; the centre child 3 straddles the edge).
+    #[test]
+    fn a_triangle_receiver_sees_a_shadow_edge_across_it() {
+        let mut floor = square(0.0, 0.0, 1.0, true);
+        floor.tri = true;
+        floor.area *= 0.5;
+        let light = square(1.0, 0.0, 1.0, false);
+        let blocker = Parallelogram::new(&[
+            [-0.5, -0.5, 0.3],
+            [0.5, -0.5, 0.3],
+            [0.5, 1.5, 0.3],
+            [-0.5, 1.5, 0.3],
+        ]);
+        let quads = [floor, light, blocker];
+        let bvh = Bvh::new(&quads);
+        let mut rays = 0;
+        let v = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 16, 3, &mut rays);
+        assert!(v.tri);
+        let [q0, q1, q2, q3] = v.quarters();
+        assert!(q0 < 0.5 * q1 && q2 < 0.5 * q1, "{v:?}");
+        assert!(q0 < q3 && q3 < q1, "{v:?}");
+        assert!(q0 < v.whole && v.whole < q1, "{v:?}");
+        // the cells of child 1, at x from ½ to 1: its corner cell (x > ¾) sees more than the
+        // cell at its corner x = ½
+        assert!(v.cells[4] < v.cells[4 + 1], "{v:?}");
+        // with one point per cell, one value per child
+        let v = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 4, 3, &mut rays);
+        assert!((0..4).all(|c| v.cells[4 + c] == v.cells[4]), "{v:?}");
+    }
+
+    /// A step on a triangle weighs a block by the triangle basis' Gram matrices of its
+    /// cells: a block delivering a constant 1, seen everywhere but on the corner child 0,
+    /// delivers 1 minus the indicator of that child, projected: its mean ¾, and its linear
+    /// part −¼ φ_j at the child's centroid (⅙, ⅙) (the mean of a linear function over a
+    /// triangle is its value at the centroid).
+    #[test]
+    fn a_step_on_a_triangle_projects_onto_its_basis() {
+        let k = 2;
+        let mut block = vec![0.0; 16];
+        block[0] = 1.0;
+        let seen = Seen {
+            whole: 0.75,
+            cells: std::array::from_fn(|c| if c < 4 { 0.0 } else { 1.0 }),
+            tri: true,
+        };
+        seen.weigh(&Steps::new(k), &mut block);
+        let mut phi = [0.0; 3];
+        crate::math::triangle::TriangleBasis::of_order(1).eval(1.0 / 6.0, 1.0 / 6.0, &mut phi);
+        let want = [1.0 - 0.25 * phi[0], -0.25 * phi[1], -0.25 * phi[2], 0.0];
+        let column: Vec<f64> = (0..4).map(|a| block[a * 4]).collect();
+        for (g, w) in column.iter().zip(want) {
+            assert!((g - w).abs() < 1e-14, "{column:?} {want:?}");
+        }
     }
 }
