@@ -173,7 +173,7 @@ impl Hierarchy<'_> {
     }
 
     /// The area of a link's end.
-    fn end_area(&self, end: u32) -> f64 {
+    pub(super) fn end_area(&self, end: u32) -> f64 {
         if is_cluster(end) {
             self.clusters.get(end).area
         } else {

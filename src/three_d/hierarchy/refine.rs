@@ -340,7 +340,7 @@ impl Hierarchy<'_> {
     }
 
     /// The mean over the channels of surface `i`'s mean B.
-    fn mean_radiosity(&self, i: usize) -> f64 {
+    pub(super) fn mean_radiosity(&self, i: usize) -> f64 {
         let root = &self.elements[i];
         root.b[0].iter().sum::<f64>() / 3.0 / root.area.sqrt()
     }
