@@ -4,11 +4,14 @@
 //! table of `benches/README.md` is its output:
 //!
 //! ```text
-//! cargo run --release --example furnished_room -- [SAMPLES_PER_OBJECT] [key=value ...]
+//! cargo run --release --example furnished_room -- [SAMPLES_PER_OBJECT] [only=PREFIX,...] [key=value ...]
 //! ```
 //!
-//! SAMPLES_PER_OBJECT (default 2¹⁸) are the reference's paths per object; each `key=value`
-//! sets a field of the document's `solver` (`epsilon=5e-4`).
+//! SAMPLES_PER_OBJECT (default 2¹⁸) are the reference's paths per object; `only` keeps the
+//! objects whose names start with one of the prefixes, to take the room apart
+//! (`only=floor,ceiling,wall,window,lamp`); each other `key=value` sets a field of the
+//! document's `solver` (`epsilon=5e-4`). The reference's seed is fixed, so two builds compared
+//! on the same arguments differ by their solvers alone.
 
 #[path = "../tests/tracer/mod.rs"]
 mod tracer;
@@ -23,8 +26,11 @@ use wavrad::scene::{parse_value, Limits};
 fn main() {
     let mut samples = 1usize << 18;
     let mut solver: Vec<(String, Value)> = Vec::new();
+    let mut only: Option<Vec<String>> = None;
     for a in std::env::args().skip(1) {
-        if let Some((k, v)) = a.split_once('=') {
+        if let Some(prefixes) = a.strip_prefix("only=") {
+            only = Some(prefixes.split(',').map(String::from).collect());
+        } else if let Some((k, v)) = a.split_once('=') {
             let v = serde_json::from_str(v).unwrap_or(Value::String(v.into()));
             solver.push((k.into(), v));
         } else {
@@ -45,6 +51,19 @@ fn main() {
         .document;
     for (k, v) in solver {
         doc["solver"][k] = v;
+    }
+    if let Some(prefixes) = only {
+        let surfaces = doc["scene"]["surfaces"]
+            .as_array_mut()
+            .expect("the document's surfaces");
+        surfaces.retain(|s| {
+            let name = s["name"].as_str().unwrap_or_default();
+            prefixes.iter().any(|p| name.starts_with(p.as_str()))
+        });
+        assert!(
+            !surfaces.is_empty(),
+            "no object's name starts with {prefixes:?}"
+        );
     }
     let t = Instant::now();
     let reference = tracer::Tracer::new(&doc).surface_means(samples, 0x200e);

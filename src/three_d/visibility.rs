@@ -1,4 +1,5 @@
-//! The visibility term V(x, y) of the slides' eq. (3) between two pieces of parallelograms.
+//! The visibility term V(x, y) of the slides' eq. (3) between two pieces of patches
+//! (parallelograms and triangles).
 //!
 //! - A conservative test first: a surface can occlude a pair of pieces only if it meets the
 //!   convex hull of their corners. The separating-axis theorem decides it on a set of candidate
@@ -9,10 +10,11 @@
 //!   per pair of points that face each other through the [`Bvh`], each weighted by the kernel.
 //!   The jitter is seeded from the indices of the two pieces, so the same document gives the
 //!   same fractions.
-//! - The same rays, grouped by the quarter (or, with enough of them, by the cell of a 4 × 4
-//!   grid) of the receiver they start from, give the visible fraction as a step over the
-//!   receiver ([`Seen`]); a Galerkin block is weighted by it on the receiver's side, so a
-//!   shadow edge through a receiver shows in its polynomial.
+//! - The same rays, grouped by the quarter (or, with enough of them, by the step cell: of a
+//!   4 × 4 grid on a parallelogram, the sixteen grandchildren of a triangle) of the receiver
+//!   they start from, give the visible fraction as a step over the receiver ([`Seen`]); a
+//!   Galerkin block is weighted by it on the receiver's side, so a shadow edge through a
+//!   receiver shows in its polynomial.
 
 use crate::three_d::bvh::Bvh;
 use crate::three_d::cover::{Mask, Partial};
