@@ -711,6 +711,43 @@ fn surface_groups(quads: &[Quad]) -> Vec<Vec<u32>> {
 /// The memory the links' blocks may take.
 const LINK_BYTES: usize = 1 << 30;
 
+/// How far above E_max / (1 − ρ_max) a surface's mean B may come before the iteration is taken
+/// to diverge. That bound holds for the exact solution (every form factor sum is at most 1);
+/// a Galerkin approximation overshoots it by far less, and a diverging iteration grows past
+/// it geometrically.
+const BOUND_FACTOR: f64 = 1e3;
+
+impl Hierarchy<'_> {
+    /// Why the iteration has diverged, if it has: B is no longer finite, or a surface's mean
+    /// exceeds [`BOUND_FACTOR`] times the physical bound E_max / (1 − ρ_max). A solver that
+    /// went on would return numbers of 10³⁷ as if they were a solution.
+    fn unbounded(&self, residual: f64) -> Option<String> {
+        if !residual.is_finite() {
+            return Some("B is no longer finite".into());
+        }
+        let emission = self
+            .quads
+            .iter()
+            .flat_map(|q| q.material.emission)
+            .fold(0.0, f64::max);
+        let rho = self.rho.iter().copied().fold(0.0, f64::max).min(1.0 - 1e-9);
+        let bound = emission / (1.0 - rho);
+        let (i, worst) = (0..self.quads.len())
+            .map(|i| {
+                let root = &self.elements[i];
+                let top = root.b[0].iter().map(|b| b.abs()).fold(0.0, f64::max);
+                (i, top / root.area.sqrt())
+            })
+            .max_by(|a, b| a.1.total_cmp(&b.1))?;
+        (!worst.is_finite() || worst > BOUND_FACTOR * bound).then(|| {
+            format!(
+                "surface {i}'s mean B reached {worst:.3e}, more than {BOUND_FACTOR} times \
+                 E_max / (1 − ρ_max) = {bound:.3e}"
+            )
+        })
+    }
+}
+
 /// Whether the edge of `quad`'s emission region passes through the inside of `piece`.
 fn straddles_emission(quad: &Quad, piece: Piece) -> bool {
     let (rs, rt) = quad.emission_region;
@@ -776,6 +813,12 @@ pub(crate) fn solve(
             residual = h.sweep();
             iterations += 1;
             history.push(residual);
+            if let Some(reason) = h.unbounded(residual) {
+                return Err(JobError::Diverged {
+                    iteration: iterations,
+                    reason,
+                });
+            }
             progress.report(
                 Phase::Solve,
                 (iterations as f64 / job.solver.max_iterations as f64).min(1.0),
@@ -981,6 +1024,27 @@ mod tests {
         assert_eq!(under, 8, "the eight triangles under the light: {exposed:?}");
         assert!(open > 0, "{exposed:?}");
         assert_eq!(under + open, exposed.len(), "{exposed:?}");
+    }
+
+    /// A solve stops with `Diverged` when a surface's mean B leaves the physical bound
+    /// E_max / (1 − ρ_max) far behind or is no longer finite, not before: the closed cube
+    /// (E = 1 on its ceiling, ρ = ½: the bound is 2) at B = 1.9 everywhere is fine, at
+    /// 10³ × 2 on one wall it is not.
+    #[test]
+    fn a_solve_whose_b_leaves_the_physical_bound_has_diverged() {
+        let quads = super::refine::tests::cube();
+        let geo = Geometry::new(&quads);
+        let mut h = Hierarchy::new(&geo, &quads, 1, Sizing::new(&geo.quads, None, None), 1e-3);
+        let set = |h: &mut Hierarchy, i: usize, b: f64| {
+            let a = h.elements[i].area;
+            h.elements[i].b[0] = [b * a.sqrt(); 3];
+        };
+        (0..6).for_each(|i| set(&mut h, i, 1.9));
+        assert_eq!(h.unbounded(0.1), None);
+        assert!(h.unbounded(f64::NAN).is_some());
+        set(&mut h, 3, 2.01 * BOUND_FACTOR);
+        let reason = h.unbounded(0.1).expect("diverged");
+        assert!(reason.contains("surface 3"), "{reason}");
     }
 
     /// Gauss–Seidel sweeps reach the fixed point of the Jacobi sweeps, on the same links, in

@@ -783,7 +783,7 @@ pub(super) fn peak_emission(quad: &crate::scene::Quad, piece: Piece) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::scene::{parse_value, Limits, SceneKind};
     use crate::three_d::hierarchy::sizing::Sizing;
@@ -819,7 +819,7 @@ mod tests {
     }
 
     /// A closed unit cube of six faces facing in, its ceiling (index 1) emitting.
-    fn cube() -> Vec<crate::scene::Quad> {
+    pub(in crate::three_d::hierarchy) fn cube() -> Vec<crate::scene::Quad> {
         let face = |name: &str, c: [[f64; 3]; 4], e: f64| serde_json::json!({"name": name, "corners": c, "reflectance": 0.5, "emission": e});
         let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
             face("floor", [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]], 0.0),
