@@ -85,6 +85,32 @@ fn closed_meshes_are_furnaces() {
     }
 }
 
+/// The walls of [`room_walls`], each a mesh of 6 × 5 cells of triangles.
+fn meshed_room() -> Vec<Value> {
+    room_walls()
+        .iter()
+        .map(|(name, c)| json!({"name": name, "mesh": grid_mesh(*c, 6, 5)}))
+        .collect()
+}
+
+/// A furnace of `surfaces`: every one E = 1, ρ = 0.5, at ε = 2e-3 (to keep a test short),
+/// with a small image and the `output` fields given.
+fn furnace_of(mut surfaces: Vec<Value>, output: Value) -> Value {
+    for s in &mut surfaces {
+        s["emission"] = json!(1.0);
+        s["reflectance"] = json!(0.5);
+    }
+    let mut doc = json!({
+        "scene": {"kind": "3d", "surfaces": surfaces},
+        "solver": {"method": "hierarchical", "epsilon": 2e-3},
+        "output": {"image": {"width": 16, "height": 16}}
+    });
+    for (k, v) in output.as_object().expect("output fields") {
+        doc["output"][k] = v.clone();
+    }
+    doc
+}
+
 /// A room of six meshes (6 × 5 cells of triangles each) with a closed box (five
 /// parallelograms) standing on its floor, every surface E = 1, ρ = 0.5: a furnace, B = 2
 /// everywhere but under the box's foot, where the floor keeps B = E = 1 (the covered part,
@@ -96,10 +122,7 @@ fn closed_meshes_are_furnaces() {
 /// sides are within 0.04 %).
 #[test]
 fn a_box_standing_on_a_meshed_floor_keeps_the_furnace() {
-    let mut surfaces: Vec<Value> = room_walls()
-        .iter()
-        .map(|(name, c)| json!({"name": name, "mesh": grid_mesh(*c, 6, 5)}))
-        .collect();
+    let mut surfaces = meshed_room();
     // the box [1.6, 3.6] × [0, 0.85] × [1.5, 2.4], each face facing out
     let (x0, x1, y1, z0, z1) = (1.6, 3.6, 0.85, 1.5, 2.4);
     for (i, c) in [
@@ -114,16 +137,7 @@ fn a_box_standing_on_a_meshed_floor_keeps_the_furnace() {
     {
         surfaces.push(json!({"name": format!("box-{i}"), "corners": c}));
     }
-    for s in &mut surfaces {
-        s["emission"] = json!(1.0);
-        s["reflectance"] = json!(0.5);
-    }
-    let doc = json!({
-        "scene": {"kind": "3d", "surfaces": surfaces},
-        "solver": {"method": "hierarchical", "epsilon": 2e-3},
-        "output": {"image": {"width": 16, "height": 16}}
-    });
-    let o = run(doc);
+    let o = run(furnace_of(surfaces, json!({})));
     let foot = (x1 - x0) * (z1 - z0) / (5.0 * 4.0);
     for s in &o.result.surfaces {
         let want = if s.name == "floor" { 2.0 - foot } else { 2.0 };
@@ -149,10 +163,7 @@ fn a_box_standing_on_a_meshed_floor_keeps_the_furnace() {
 /// the floor (a point value); at ε = 2e-3 to keep the test short.
 #[test]
 fn a_slab_over_a_meshed_floor_keeps_the_furnace_in_its_shadow() {
-    let mut surfaces: Vec<Value> = room_walls()
-        .iter()
-        .map(|(name, c)| json!({"name": name, "mesh": grid_mesh(*c, 6, 5)}))
-        .collect();
+    let mut surfaces = meshed_room();
     let (x0, x1, y0, y1, z0, z1) = (1.9, 2.7, 0.08, 0.2, 1.9, 2.5);
     let positions: Vec<[f64; 3]> = (0..8)
         .map(|i| {
@@ -178,16 +189,7 @@ fn a_slab_over_a_meshed_floor_keeps_the_furnace_in_its_shadow() {
         .collect();
     surfaces
         .push(json!({"name": "slab", "mesh": {"positions": positions, "triangles": triangles}}));
-    for s in &mut surfaces {
-        s["emission"] = json!(1.0);
-        s["reflectance"] = json!(0.5);
-    }
-    let doc = json!({
-        "scene": {"kind": "3d", "surfaces": surfaces},
-        "solver": {"method": "hierarchical", "epsilon": 2e-3},
-        "output": {"image": {"width": 16, "height": 16}, "vertices": true}
-    });
-    let o = run(doc);
+    let o = run(furnace_of(surfaces, json!({"vertices": true})));
     for s in &o.result.surfaces {
         assert!((s.mean[0] - 2.0).abs() < 2e-3, "{}: {}", s.name, s.mean[0]);
         if s.name == "floor" {

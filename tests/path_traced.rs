@@ -530,29 +530,37 @@ fn a_rug_just_above_a_meshed_floor_darkens_only_the_floor_under_it() {
             "solver": {"method": "hierarchical"},
             "output": {"image": {"width": 16, "height": 16}}
         });
-        let reference = Tracer::new(&doc).surface_means(1 << 18, 0x2a6);
-        let j = parse_value(&doc, &Limits::default()).expect("valid document");
-        let out = job::run(&j, &Silent).expect("solves");
-        for (s, (want, noise)) in out.result.surfaces.iter().zip(&reference) {
-            if s.name == "window" {
-                continue;
-            }
-            let got = s.mean[1];
-            eprintln!(
-                "meshed rug {meshed_rug}: {} {got:.5} against {:.5} ± {:.5} ({:+.2} %)",
-                s.name,
-                want[1],
-                noise[1],
-                100.0 * (got / want[1] - 1.0)
-            );
-            assert!(
-                (got / want[1] - 1.0).abs() < 0.01 + 4.0 * noise[1] / want[1],
-                "meshed rug {meshed_rug}: {} {got} against {} ± {}",
-                s.name,
-                want[1],
-                noise[1]
-            );
+        let label = format!("meshed rug {meshed_rug}");
+        means_within_the_gallery(&label, &doc, 0x2a6, &["window"]);
+    }
+}
+
+/// Solves `doc` and holds every surface's mean (green channel) but those `skipped` to the
+/// gallery's requirement against 2¹⁸ paths of the tracer per surface (seeded `seed`): within
+/// 1 % beyond four standard errors.
+fn means_within_the_gallery(label: &str, doc: &Value, seed: u64, skipped: &[&str]) {
+    let reference = Tracer::new(doc).surface_means(1 << 18, seed);
+    let j = parse_value(doc, &Limits::default()).expect("valid document");
+    let out = job::run(&j, &Silent).expect("solves");
+    for (s, (want, noise)) in out.result.surfaces.iter().zip(&reference) {
+        let got = s.mean[1];
+        eprintln!(
+            "{label}: {} {got:.5} against {:.5} ± {:.5} ({:+.2} %)",
+            s.name,
+            want[1],
+            noise[1],
+            100.0 * (got / want[1] - 1.0)
+        );
+        if skipped.contains(&s.name.as_str()) {
+            continue;
         }
+        assert!(
+            (got / want[1] - 1.0).abs() < 0.01 + 4.0 * noise[1] / want[1],
+            "{label}: {} {got} against {} ± {}",
+            s.name,
+            want[1],
+            noise[1]
+        );
     }
 }
 
@@ -655,28 +663,5 @@ fn a_row_of_books_on_a_meshed_floor() {
         "solver": {"method": "hierarchical"},
         "output": {"image": {"width": 16, "height": 16}}
     });
-    let reference = Tracer::new(&doc).surface_means(1 << 18, 0xb00c);
-    let j = parse_value(&doc, &Limits::default()).expect("valid document");
-    let out = job::run(&j, &Silent).expect("solves");
-    for (s, (want, noise)) in out.result.surfaces.iter().zip(&reference) {
-        eprintln!(
-            "{} {:.5} against {:.5} ± {:.5} ({:+.2} %)",
-            s.name,
-            s.mean[1],
-            want[1],
-            noise[1],
-            100.0 * (s.mean[1] / want[1] - 1.0)
-        );
-        if s.name == "light" || s.name == "books" {
-            continue;
-        }
-        assert!(
-            (s.mean[1] / want[1] - 1.0).abs() < 0.01 + 4.0 * noise[1] / want[1],
-            "{} {} against {} ± {}",
-            s.name,
-            s.mean[1],
-            want[1],
-            noise[1]
-        );
-    }
+    means_within_the_gallery("a row of books", &doc, 0xb00c, &["light", "books"]);
 }

@@ -744,11 +744,9 @@ mod tests {
         assert!(block.iter().all(|&x| x == 0.5));
     }
 
-    #[test]
-    fn quarters_see_a_shadow_edge_across_the_receiver() {
-        // a floor under a light, with a blocker over the floor's half s < ½ only: the quarters
-        // on that side see less of the light than the others
-        let floor = square(0.0, 0.0, 1.0, true);
+    /// `floor` (on z = 0, over x and y from 0 to 1), a light over it at z = 1, and between
+    /// them at z = 0.3 a blocker over the part x < ½.
+    fn under_a_half_blocked_light(floor: Parallelogram) -> [Parallelogram; 3] {
         let light = square(1.0, 0.0, 1.0, false);
         let blocker = Parallelogram::new(&[
             [-0.5, -0.5, 0.3],
@@ -756,7 +754,15 @@ mod tests {
             [0.5, 1.5, 0.3],
             [-0.5, 1.5, 0.3],
         ]);
-        let quads = [floor, light, blocker];
+        [floor, light, blocker]
+    }
+
+    #[test]
+    fn quarters_see_a_shadow_edge_across_the_receiver() {
+        // a floor under a light, with a blocker over the floor's half s < ½ only: the quarters
+        // on that side see less of the light than the others
+        let floor = square(0.0, 0.0, 1.0, true);
+        let quads = under_a_half_blocked_light(floor);
         let bvh = Bvh::new(&quads);
         let mut rays = 0;
         let v = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 16, 3, &mut rays);
@@ -792,14 +798,7 @@ mod tests {
         let mut floor = square(0.0, 0.0, 1.0, true);
         floor.tri = true;
         floor.area *= 0.5;
-        let light = square(1.0, 0.0, 1.0, false);
-        let blocker = Parallelogram::new(&[
-            [-0.5, -0.5, 0.3],
-            [0.5, -0.5, 0.3],
-            [0.5, 1.5, 0.3],
-            [-0.5, 1.5, 0.3],
-        ]);
-        let quads = [floor, light, blocker];
+        let quads = under_a_half_blocked_light(floor);
         let bvh = Bvh::new(&quads);
         let mut rays = 0;
         let v = visible_fraction(&bvh, Piece::whole(0), Piece::whole(1), 16, 3, &mut rays);

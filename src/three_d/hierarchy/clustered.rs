@@ -1241,24 +1241,16 @@ mod tests {
             {"name": "light", "corners": [[-0.25, 3, -0.25], [0.25, 3, -0.25], [0.25, 3, 0.25], [-0.25, 3, 0.25]],
              "reflectance": 0.0, "emission": 1.0}]},
             "solver": {"method": "hierarchical"}});
-        let quads = super::super::tests::patches(&doc);
-        let geo = crate::three_d::projection::Geometry::new(&quads);
-        let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
-        let h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3);
-        let both = *h
-            .clusters
-            .starts
-            .iter()
-            .find(|&&r| is_cluster(r) && h.clusters.members(r).len() == 4)
-            .unwrap();
-        let light = 4;
         let plate = 0.05f64.powi(2) / (1.0 + 0.05f64.powi(2));
-        for seed in 0..20 {
-            let (v, valid, _) = h.cluster_visibility(both, light, seed);
-            assert_eq!(valid, CLUSTER_RAYS, "every pair faces");
-            let stopped = (1.0 - v) / plate;
-            assert!((1.0..2.0).contains(&stopped), "seed {seed}: V = {v}");
-        }
+        with_two_meshes(&doc, |h, both| {
+            let light = 4;
+            for seed in 0..20 {
+                let (v, valid, _) = h.cluster_visibility(both, light, seed);
+                assert_eq!(valid, CLUSTER_RAYS, "every pair faces");
+                let stopped = (1.0 - v) / plate;
+                assert!((1.0..2.0).contains(&stopped), "seed {seed}: V = {v}");
+            }
+        });
     }
 
     /// A link gives every receiving member V times its unoccluded transfer, so V must be the
@@ -1284,45 +1276,53 @@ mod tests {
             {"name": "light", "corners": [[-0.05, 3, -0.05], [0.05, 3, -0.05], [0.05, 3, 0.05], [-0.05, 3, 0.05]],
              "reflectance": 0.0, "emission": 1.0}]},
             "solver": {"method": "hierarchical"}});
-        let quads = super::super::tests::patches(&doc);
+        with_two_meshes(&doc, |h, plates| {
+            let light = 5usize;
+            assert!(h.geo.quads[light].n[1] < 0.0 && !h.geo.quads[light].tri);
+            // ∫∫ K over each plate's two triangles and the light
+            let transfer = |members: std::ops::Range<usize>| -> f64 {
+                members
+                    .map(|p| {
+                        let mut block = vec![0.0; 1];
+                        crate::three_d::transfer::block(
+                            &h.geo.quads,
+                            crate::three_d::geometry::Piece::whole(p),
+                            crate::three_d::geometry::Piece::whole(light),
+                            crate::three_d::transfer::Integrand::Galerkin { k: 1 },
+                            h.accuracy,
+                            &mut block,
+                        );
+                        block[0] * (h.geo.quads[p].area * h.geo.quads[light].area).sqrt()
+                    })
+                    .sum()
+            };
+            let (near, far) = (transfer(0..2), transfer(2..4));
+            let want = near / (near + far);
+            assert!(want > 0.8, "{want}");
+            for seed in 0..20 {
+                let (v, valid, _) = h.cluster_visibility(plates, light as u32, seed);
+                assert_eq!(valid, CLUSTER_RAYS, "every pair faces");
+                assert!(
+                    (v - want).abs() < 0.01 * want,
+                    "seed {seed}: V = {v}, want {want}"
+                );
+            }
+        });
+    }
+
+    /// Runs `check` on the hierarchy of a document whose two meshes (of two triangles each)
+    /// make one cluster of four members, with that cluster.
+    fn with_two_meshes(doc: &serde_json::Value, check: impl FnOnce(&Hierarchy, u32)) {
+        let quads = super::super::tests::patches(doc);
         let geo = crate::three_d::projection::Geometry::new(&quads);
         let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
         let h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3);
-        let plates = *h
+        let both = *h
             .clusters
             .starts
             .iter()
             .find(|&&r| is_cluster(r) && h.clusters.members(r).len() == 4)
-            .unwrap();
-        let light = 5usize;
-        assert!(h.geo.quads[light].n[1] < 0.0 && !h.geo.quads[light].tri);
-        // ∫∫ K over each plate's two triangles and the light
-        let transfer = |members: std::ops::Range<usize>| -> f64 {
-            members
-                .map(|p| {
-                    let mut block = vec![0.0; 1];
-                    crate::three_d::transfer::block(
-                        &h.geo.quads,
-                        crate::three_d::geometry::Piece::whole(p),
-                        crate::three_d::geometry::Piece::whole(light),
-                        crate::three_d::transfer::Integrand::Galerkin { k: 1 },
-                        h.accuracy,
-                        &mut block,
-                    );
-                    block[0] * (h.geo.quads[p].area * h.geo.quads[light].area).sqrt()
-                })
-                .sum()
-        };
-        let (near, far) = (transfer(0..2), transfer(2..4));
-        let want = near / (near + far);
-        assert!(want > 0.8, "{want}");
-        for seed in 0..20 {
-            let (v, valid, _) = h.cluster_visibility(plates, light as u32, seed);
-            assert_eq!(valid, CLUSTER_RAYS, "every pair faces");
-            assert!(
-                (v - want).abs() < 0.01 * want,
-                "seed {seed}: V = {v}, want {want}"
-            );
-        }
+            .expect("one cluster of the two meshes");
+        check(&h, both);
     }
 }
