@@ -340,7 +340,7 @@ impl Hierarchy<'_> {
             return clusters[(id & !crate::three_d::cluster::CLUSTER) as usize];
         }
         let el = &self.elements[id as usize];
-        let mean = el.b[0].map(|x| x / el.area.sqrt());
+        let mean = el.sent0().map(|x| x / el.area.sqrt());
         let q = &self.geo.quads[el.piece.surface];
         let cov = covariance(&el.piece.corners(&self.geo.quads), q.tri);
         Emitter::member(el.area, mean, self.element_centre(id), q.n, cov)
@@ -749,7 +749,7 @@ impl Hierarchy<'_> {
             }
         } else {
             let el = &self.elements[l.src as usize];
-            add_member(&el.b[0], el.area, self.geo.quads[el.piece.surface].n);
+            add_member(&el.sent0(), el.area, self.geo.quads[el.piece.surface].n);
         }
         self.for_members(l.recv, |_, area, x, n| {
             let d = sub(centre, x);
@@ -881,7 +881,7 @@ impl Hierarchy<'_> {
         self.clusters
             .order()
             .iter()
-            .map(|&p| self.elements[p as usize].b[0])
+            .map(|&p| self.elements[p as usize].sent0())
             .collect()
     }
 }

@@ -380,11 +380,17 @@ impl<'g> Hierarchy<'g> {
         let kk = self.k * self.k;
         // gather, receivers in parallel, each receiver's links in a fixed order
         // every element's B side by side: the gather reads them in no particular order
-        let all_b: Vec<Rgb> = self
+        let mut all_b: Vec<Rgb> = self
             .elements
             .iter()
             .flat_map(|e| e.b.iter().copied())
             .collect();
+        // a partly covered source sends what its exposed part determines ([`tree::Element::sent`])
+        for (e, el) in self.elements.iter().enumerate() {
+            if matches!(el.exposure, Exposure::Partial(_)) {
+                all_b[e * kk..(e + 1) * kk].copy_from_slice(&el.sent());
+            }
+        }
         let gathered: Vec<(u32, Vec<Rgb>)> = self
             .receiver_runs()
             .into_par_iter()
@@ -467,7 +473,12 @@ impl<'g> Hierarchy<'g> {
                 .map(|&r| {
                     let mut h = this.elements[r as usize].h.clone();
                     for l in &this.links[runs[r as usize].clone()] {
-                        gather(&mut h, &l.block, &this.elements[l.src as usize].b);
+                        let src = &this.elements[l.src as usize];
+                        if matches!(src.exposure, Exposure::Partial(_)) {
+                            gather(&mut h, &l.block, &src.sent());
+                        } else {
+                            gather(&mut h, &l.block, &src.b);
+                        }
                     }
                     h
                 })

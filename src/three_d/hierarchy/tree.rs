@@ -49,6 +49,36 @@ impl Element {
         self.exposure != Exposure::Covered
     }
 
+    /// The coefficients of the polynomial it sends. A partly covered element's B is fitted
+    /// to its exposed part (B = G⁺ h, [`crate::three_d::cover`]) and sent over the whole
+    /// element, the rays taking the covered part back out; of it only what the exposed part
+    /// determines goes out ([`crate::three_d::cover::Partial`]'s `sending`), so that its
+    /// continuation under the solid stays of the size it has where it is seen.
+    pub(super) fn sent(&self) -> Vec<Rgb> {
+        match &self.exposure {
+            Exposure::Partial(p) => {
+                let mut out = vec![[0.0; 3]; self.b.len()];
+                crate::three_d::cover::Partial::apply(&p.sending, &self.b, &mut out);
+                out
+            }
+            _ => self.b.clone(),
+        }
+    }
+
+    /// The first coefficient of [`Element::sent`]: its mean times √A.
+    pub(super) fn sent0(&self) -> Rgb {
+        match &self.exposure {
+            Exposure::Partial(p) => {
+                let mut out = [0.0; 3];
+                for (g, b) in p.sending.iter().zip(&self.b) {
+                    (0..3).for_each(|ch| out[ch] += g * b[ch]);
+                }
+                out
+            }
+            _ => self.b[0],
+        }
+    }
+
     /// Whether it sends light: not wholly covered, or emitting (a covered part keeps B = E).
     pub(super) fn sends(&self) -> bool {
         self.receives() || self.peak > 0.0
