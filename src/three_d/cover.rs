@@ -62,9 +62,10 @@ const CUTOFF: f64 = 1e-3;
 /// times larger over the element than where it is seen; slivers under a sixth of an element
 /// send their mean and slope along the sliver only). From order 2 on it is below [`CUTOFF`],
 /// which drops more already, and nothing changes: the cut-off 1e-2 for every order took
-/// from elements half covered at order 2 (their least eigenvalue 3.9e-3) what they send to
-/// the Cornell box's ceiling, 0.9 % off (`tests/path_traced.rs`), and 3e-3 made order 2 on
-/// the gallery's rotated boxes twice as far from the tracer as order 1 (`tests/gallery.rs`).
+/// eigenvectors the fit keeps at orders 2 and 3 (an element half covered has one at 3.9e-3
+/// at order 2) and put the Cornell box's ceiling at order 3 0.88 % off
+/// (`tests/path_traced.rs`), and 3e-3 made order 2 on the gallery's rotated boxes twice as
+/// far from the tracer as order 1 (`tests/gallery.rs`).
 const SENDING_SHARE: f64 = 0.05;
 
 /// The relative eigenvalue below which an element of `k` × `k` functions does not send an
