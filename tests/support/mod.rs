@@ -145,3 +145,83 @@ pub fn grid_mesh(c: [[f64; 3]; 4], w: usize, h: usize) -> Value {
     }
     serde_json::json!({"positions": positions, "triangles": triangles})
 }
+
+/// Thirty books standing 3 mm apart on the floor of [`room_walls`], 2 cm from its east wall
+/// (x = 5) from z = 1.2, as one mesh: boxes 0.23 m deep, 2–5 cm wide and 0.2–0.36 m tall,
+/// without bottoms (the floor closes them), every face counter-clockwise from outside.
+pub fn row_of_books() -> Value {
+    // (width, height)
+    const BOOKS: [(f64, f64); 30] = [
+        (0.0271, 0.287),
+        (0.0311, 0.297),
+        (0.0388, 0.21),
+        (0.0204, 0.334),
+        (0.0278, 0.237),
+        (0.0499, 0.275),
+        (0.0451, 0.276),
+        (0.0392, 0.224),
+        (0.039, 0.339),
+        (0.0357, 0.319),
+        (0.0401, 0.21),
+        (0.0427, 0.295),
+        (0.029, 0.205),
+        (0.046, 0.276),
+        (0.0416, 0.341),
+        (0.0414, 0.347),
+        (0.0318, 0.328),
+        (0.0333, 0.35),
+        (0.0464, 0.216),
+        (0.0241, 0.235),
+        (0.049, 0.27),
+        (0.0388, 0.248),
+        (0.0352, 0.262),
+        (0.0305, 0.294),
+        (0.0375, 0.345),
+        (0.0405, 0.349),
+        (0.0457, 0.359),
+        (0.0401, 0.226),
+        (0.0458, 0.354),
+        (0.0471, 0.291),
+    ];
+    let (mut positions, mut triangles): (Vec<[f64; 3]>, Vec<[usize; 3]>) = (vec![], vec![]);
+    let mut z = 1.2;
+    for (w, h) in BOOKS {
+        let (x0, x1, z0, z1) = (4.75, 4.98, z, z + w);
+        let at = |x: f64, y: f64, z: f64| [x, y, z];
+        // top, the two sides across z, the front and the back, counter-clockwise from outside
+        for face in [
+            [at(x0, h, z0), at(x0, h, z1), at(x1, h, z1), at(x1, h, z0)],
+            [
+                at(x0, 0.0, z0),
+                at(x0, h, z0),
+                at(x1, h, z0),
+                at(x1, 0.0, z0),
+            ],
+            [
+                at(x0, 0.0, z1),
+                at(x1, 0.0, z1),
+                at(x1, h, z1),
+                at(x0, h, z1),
+            ],
+            [
+                at(x0, 0.0, z0),
+                at(x0, 0.0, z1),
+                at(x0, h, z1),
+                at(x0, h, z0),
+            ],
+            [
+                at(x1, 0.0, z0),
+                at(x1, h, z0),
+                at(x1, h, z1),
+                at(x1, 0.0, z1),
+            ],
+        ] {
+            let base = positions.len();
+            positions.extend(face);
+            triangles.push([base, base + 1, base + 2]);
+            triangles.push([base, base + 2, base + 3]);
+        }
+        z += w + 0.003;
+    }
+    serde_json::json!({"positions": positions, "triangles": triangles})
+}
