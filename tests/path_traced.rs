@@ -578,9 +578,9 @@ fn means_within(label: &str, doc: &Value, reference: &[(V3, V3)], skipped: &[&st
 /// light (the books as one mesh, boxes of 2–5 cm by 0.23 m by 0.2–0.36 m without bottoms):
 /// the furnished room's bookcase taken apart, where its dark came from. At the defaults and at
 /// ε = 2.5e-4 every wall and the floor are within the gallery's 1 % beyond four standard
-/// errors of the tracer. The books themselves, dim faces in slits, come out 11 % bright at
+/// errors of the tracer. The books themselves, dim faces in slits, come out 10 % bright at
 /// the defaults (the oracle's tolerance for dim receivers): what is asked of them is that
-/// their error falls with ε (7 % at ε = 2.5e-4, `benches/README.md`). Below ε = 5e-4 the
+/// their error falls with ε (6 % at ε = 2.5e-4, `benches/README.md`). Below ε = 5e-4 the
 /// iteration diverged: the floor's elements between the books are exposed in slivers, whose
 /// polynomials' continuations under the books were sent with them (`three_d::cover`'s
 /// `SENDING_SHARE`).
