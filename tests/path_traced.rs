@@ -7,7 +7,7 @@ mod tracer;
 use rand::rngs::SmallRng;
 use rand::SeedableRng;
 use serde_json::{json, Value};
-use support::{grid_mesh, room_walls, row_of_books, scene_file, WINDOW};
+use support::{grid_mesh, meshed_walls, room_walls, row_of_books, scene_file, WINDOW};
 use tracer::{compare, reference, Comparison, Tracer, V3};
 use wavrad::job;
 use wavrad::progress::Silent;
@@ -512,10 +512,7 @@ fn a_rug_just_above_a_meshed_floor_darkens_only_the_floor_under_it() {
         [3.9, 0.005, 0.9],
     ];
     for meshed_rug in [true, false] {
-        let mut surfaces: Vec<Value> = room_walls()
-            .iter()
-            .map(|(name, c)| json!({"name": name, "mesh": grid_mesh(*c, 12, 10), "reflectance": 0.6}))
-            .collect();
+        let mut surfaces = meshed_walls(12, 10, 0.6);
         surfaces.push(
             json!({"name": "window", "emission": 8.5, "reflectance": 0.0,
             "corners": [[0.002, y0, z1], [0.002, y0, z0], [0.002, y1, z0], [0.002, y1, z1]]}),
@@ -586,10 +583,7 @@ fn means_within(label: &str, doc: &Value, reference: &[(V3, V3)], skipped: &[&st
 /// `SENDING_SHARE`).
 #[test]
 fn a_row_of_books_on_a_meshed_floor() {
-    let mut surfaces: Vec<Value> = room_walls()
-        .iter()
-        .map(|(name, c)| json!({"name": name, "mesh": grid_mesh(*c, 6, 5), "reflectance": 0.6}))
-        .collect();
+    let mut surfaces = meshed_walls(6, 5, 0.6);
     surfaces.push(
         json!({"name": "light", "emission": 30.0, "reflectance": 0.0,
         "corners": [[2.2, 2.69, 1.7], [2.8, 2.69, 1.7], [2.8, 2.69, 2.3], [2.2, 2.69, 2.3]]}),

@@ -267,9 +267,24 @@ fn halve(
         items.swap(0, big);
         return 1;
     }
+    at_median(items, centre)
+}
+
+/// Halves `items` by their normals: ordered along the axis on which the normals spread the
+/// most (ties by the item), at the median. Repeated while a half's members face opposite
+/// ways, it leaves clusters whose normals lie within a hemisphere, the faces of a box one
+/// side or two adjacent sides to a cluster.
+fn facing_halves(items: &mut [u32], normal: impl Fn(u32) -> V3) -> usize {
+    at_median(items, normal)
+}
+
+/// Orders `items` about the median of `key` along the axis on which the keys' box is
+/// longest (ties by the item) and returns the median's index: the halving of [`halve`] (by
+/// centre) and of [`facing_halves`] (by normal).
+fn at_median(items: &mut [u32], key: impl Fn(u32) -> V3) -> usize {
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for &m in items.iter() {
-        let c = centre(m);
+        let c = key(m);
         for a in 0..3 {
             lo[a] = lo[a].min(c[a]);
             hi[a] = hi[a].max(c[a]);
@@ -280,30 +295,7 @@ fn halve(
         .unwrap_or(0);
     let mid = items.len() / 2;
     items.select_nth_unstable_by(mid, |&a, &b| {
-        centre(a)[axis].total_cmp(&centre(b)[axis]).then(a.cmp(&b))
-    });
-    mid
-}
-
-/// Halves `items` by their normals: ordered along the axis on which the normals spread the
-/// most (ties by the item), at the median. Repeated while a half's members face opposite
-/// ways, it leaves clusters whose normals lie within a hemisphere, the faces of a box one
-/// side or two adjacent sides to a cluster.
-fn facing_halves(items: &mut [u32], normal: impl Fn(u32) -> V3) -> usize {
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for &m in items.iter() {
-        let n = normal(m);
-        for a in 0..3 {
-            lo[a] = lo[a].min(n[a]);
-            hi[a] = hi[a].max(n[a]);
-        }
-    }
-    let axis = (0..3)
-        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
-        .unwrap_or(0);
-    let mid = items.len() / 2;
-    items.select_nth_unstable_by(mid, |&a, &b| {
-        normal(a)[axis].total_cmp(&normal(b)[axis]).then(a.cmp(&b))
+        key(a)[axis].total_cmp(&key(b)[axis]).then(a.cmp(&b))
     });
     mid
 }

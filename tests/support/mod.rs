@@ -119,6 +119,14 @@ pub fn room_walls() -> [(&'static str, [[f64; 3]; 4]); 6] {
     ]
 }
 
+/// The walls of [`room_walls`], each a mesh of `w × h` cells of triangles of reflectance `rho`.
+pub fn meshed_walls(w: usize, h: usize, rho: f64) -> Vec<Value> {
+    room_walls()
+        .iter()
+        .map(|(name, c)| serde_json::json!({"name": name, "mesh": grid_mesh(*c, w, h), "reflectance": rho}))
+        .collect()
+}
+
 /// The window of [`room_walls`] in its west wall, as `scenes/models/room.obj` has it: y from
 /// y0 to y1, z from z0 to z1.
 pub const WINDOW: (f64, f64, f64, f64) = (0.81, 2.295, 1.2, 2.8);

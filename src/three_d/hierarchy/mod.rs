@@ -53,6 +53,9 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 use tree::{pull, push, Element, NONE};
 
+/// The most coefficients of an element (k² for the highest order).
+const MAX_KK: usize = crate::three_d::transfer::MAX_K * crate::three_d::transfer::MAX_K;
+
 /// Refinement passes after the first solve, at most.
 const MAX_PASSES: usize = 6;
 
@@ -388,7 +391,7 @@ impl<'g> Hierarchy<'g> {
         // a partly covered source sends what its exposed part determines ([`tree::Element::sent`])
         for (e, el) in self.elements.iter().enumerate() {
             if matches!(el.exposure, Exposure::Partial(_)) {
-                all_b[e * kk..(e + 1) * kk].copy_from_slice(&el.sent());
+                el.sent(&mut all_b[e * kk..(e + 1) * kk]);
             }
         }
         let gathered: Vec<(u32, Vec<Rgb>)> = self
@@ -475,7 +478,9 @@ impl<'g> Hierarchy<'g> {
                     for l in &this.links[runs[r as usize].clone()] {
                         let src = &this.elements[l.src as usize];
                         if matches!(src.exposure, Exposure::Partial(_)) {
-                            gather(&mut h, &l.block, &src.sent());
+                            let mut sent = [[0.0; 3]; MAX_KK];
+                            src.sent(&mut sent[..kk]);
+                            gather(&mut h, &l.block, &sent[..kk]);
                         } else {
                             gather(&mut h, &l.block, &src.b);
                         }
@@ -500,7 +505,6 @@ impl<'g> Hierarchy<'g> {
     /// The coefficient vectors of the recursion live on the stack: a sweep visits every
     /// element, and one allocation each would cost as much as the arithmetic.
     fn push_pull(&mut self, e: u32, down: &[Rgb], change: &mut f64, norm: &mut f64) {
-        const MAX_KK: usize = crate::three_d::transfer::MAX_K * crate::three_d::transfer::MAX_K;
         let kk = self.k * self.k;
         let mut total = [[0.0; 3]; MAX_KK];
         let el = &self.elements[e as usize];

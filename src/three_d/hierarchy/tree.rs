@@ -49,19 +49,17 @@ impl Element {
         self.exposure != Exposure::Covered
     }
 
-    /// The coefficients of the polynomial it sends. A partly covered element's B is fitted
+    /// Writes into `out` the coefficients of the polynomial it sends. A partly covered element's B is fitted
     /// to its exposed part (B = G⁺ h, [`crate::three_d::cover`]) and sent over the whole
     /// element, the rays taking the covered part back out; of it only what the exposed part
     /// determines goes out ([`crate::three_d::cover::Partial`]'s `sending`), so that its
     /// continuation under the solid stays of the size it has where it is seen.
-    pub(super) fn sent(&self) -> Vec<Rgb> {
+    pub(super) fn sent(&self, out: &mut [Rgb]) {
         match &self.exposure {
             Exposure::Partial(p) => {
-                let mut out = vec![[0.0; 3]; self.b.len()];
-                crate::three_d::cover::Partial::apply(&p.sending, &self.b, &mut out);
-                out
+                crate::three_d::cover::Partial::apply(&p.sending, &self.b, out);
             }
-            _ => self.b.clone(),
+            _ => out.copy_from_slice(&self.b),
         }
     }
 
