@@ -137,7 +137,7 @@ fn cornell_box_approaches_path_tracing_as_epsilon_shrinks() {
     // The sides that the light does not reach are dark (0.03–0.2 against 47 for the light,
     // which ε is relative to): with the whole tolerance on them their links stayed coarse
     // and they came out up to +2.90 % bright at the document's ε (+2.24 % at 2.5e-4). A
-    // dim receiver surface now gets a share of the tolerance ([`DIM_KNEE`] in the oracle).
+    // dim receiver now gets a share of the tolerance (`hierarchy::tolerance` in the oracle).
     // Splitting first the floor's elements along the blocks' feet, against half the
     // tolerance, when something may hide a source from them took the short front from
     // +2.85 % to +2.08 % (at ε = 6.25e-5 from +1.07 % to +0.73 %). Fitting the ceiling

@@ -422,6 +422,26 @@ pub(super) fn visible_fraction_over(
     seed: u64,
     rays: &mut u64,
 ) -> Seen {
+    visible_share_of_light(bvh, a, covered, b, n, seed, rays, &|_, _| 1.0)
+}
+
+/// [`visible_fraction_over`] with each ray also weighted by `light`, the radiosity of `b` at
+/// the ray's end ((s, t) of its surface): the share of the light from `b` that is not
+/// stopped, rather than of the rays. A link multiplies the whole transfer by it, and where
+/// an occluder hides part of a source from a receiver, that part is most often also in the
+/// occluder's shadow (the floor behind a block, seen from the ceiling), so the share of the
+/// rays errs low, always: the Cornell box's ceiling took 2.4 % too little from the floor.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn visible_share_of_light(
+    bvh: &Bvh,
+    a: Piece,
+    covered: Option<&Mask>,
+    b: Piece,
+    n: usize,
+    seed: u64,
+    rays: &mut u64,
+    light: &dyn Fn(f64, f64) -> f64,
+) -> Seen {
     let quads = bvh.quads();
     let (qa, qb) = (&quads[a.surface], &quads[b.surface]);
     let area = |p: &Piece, q: &Parallelogram| q.area * (p.s[1] - p.s[0]) * (p.t[1] - p.t[0]);
@@ -460,7 +480,7 @@ pub(super) fn visible_fraction_over(
             continue;
         }
         let r2 = dot(d, d);
-        let w = ca * cb / (r2 * (r2 + disc));
+        let w = ca * cb / (r2 * (r2 + disc)) * light(sb, tb);
         let step = |u: f64| ((u * STEP as f64) as usize).min(STEP - 1);
         let cell = if qa.tri {
             let (u, v) = fold(ua, va);
@@ -640,6 +660,40 @@ mod tests {
         let (near, far) = (half(false), half(true));
         assert!(near < 0.45 && far > 0.55, "{near} {far}");
         assert!((near + far - 1.0).abs() < 0.03, "{near} {far}");
+    }
+
+    /// The same floor, ceiling and blocker, the ceiling's hidden half dark (a shadow) and its
+    /// open half lit: half of the rays are stopped but none of the light, so the share of the
+    /// light is 1 (to the rays that cross the blocker's edge, a 1000th of the way), and with
+    /// the hidden half lit and the open half dark it is 0; lit uniformly, it is the share of
+    /// the rays, seed for seed.
+    #[test]
+    fn the_share_of_the_light_weighs_each_ray_by_the_source_where_it_ends() {
+        let floor = square(0.0, 0.0, 1.0, true);
+        let ceiling = square(1.0, 0.0, 1.0, false);
+        let blocker = Parallelogram::new(&[
+            [0.0, 0.0, 0.999],
+            [0.0, 1.0, 0.999],
+            [0.5, 1.0, 0.999],
+            [0.5, 0.0, 0.999],
+        ]);
+        let quads = [floor, ceiling, blocker];
+        let bvh = Bvh::new(&quads);
+        let (a, b) = (Piece::whole(0), Piece::whole(1));
+        let x = |s: f64, t: f64| quads[1].at(s, t)[0];
+        let open = |s: f64, t: f64| if x(s, t) >= 0.5 { 1.0 } else { 1e-300 };
+        let hidden = |s: f64, t: f64| if x(s, t) < 0.5 { 1.0 } else { 1e-300 };
+        let mut rays = 0;
+        for seed in 0..8 {
+            let lit = visible_share_of_light(&bvh, a, None, b, 16, seed, &mut rays, &open);
+            assert!(lit.whole > 0.99, "{}", lit.whole);
+            let dark = visible_share_of_light(&bvh, a, None, b, 16, seed, &mut rays, &hidden);
+            assert!(dark.whole < 0.01, "{}", dark.whole);
+            let uniform =
+                visible_share_of_light(&bvh, a, None, b, 16, seed, &mut rays, &|_, _| 2.0);
+            let plain = visible_fraction(&bvh, a, b, 16, seed, &mut rays);
+            assert!((uniform.whole - plain.whole).abs() < 1e-12);
+        }
     }
 
     #[test]

@@ -30,6 +30,7 @@ mod clustered;
 mod kernel_error;
 mod refine;
 mod sizing;
+mod tolerance;
 mod tree;
 
 use crate::math::basis::Filters;
@@ -41,7 +42,7 @@ use crate::progress::{Cancelled, Phase, Progress};
 use crate::result::HierarchyStats;
 use crate::scene::{Job, Quad, Rgb, SceneKind};
 use crate::three_d::bvh::Bvh;
-use crate::three_d::cluster::{is_cluster, Bound, Clusters};
+use crate::three_d::cluster::{is_cluster, Clusters};
 use crate::three_d::cover::{Exposure, Mask, Partial};
 use crate::three_d::geometry::Piece;
 use crate::three_d::projection::{piece_emission, Geometry};
@@ -76,13 +77,13 @@ struct Hierarchy<'g> {
     /// Receivers above this level are split before their sources ([`refine::receiver_first`]).
     receiver_first: u32,
     threshold: f64,
-    /// The typical reflected radiosity (area-weighted mean over the non-emitting surfaces,
-    /// mean of the channels) of the last solve; 0 before the first.
-    typical: f64,
+    /// The typical reflected radiosity per channel (area-weighted mean over the non-emitting
+    /// surfaces) of the last solve; 0 before the first ([`tolerance`]).
+    typical: [f64; 3],
     /// Largest channel of ρ per surface.
     rho: Vec<f64>,
-    /// Per receiver surface: how many non-emitting surfaces face it (at least 1), the weight
-    /// w_R of the oracle for inter-reflected light ([`refine`]).
+    /// Per receiver patch: the weight w_R of the oracle for inter-reflected light
+    /// ([`tolerance`]).
     indirect: Vec<f64>,
     accuracy: Accuracy,
     /// The grid on which pairs of pieces are compared for congruence: 2⁻³² of the scene.
@@ -179,8 +180,8 @@ impl<'g> Hierarchy<'g> {
             levels,
             sizing,
             threshold: epsilon * emax,
-            typical: 0.0,
-            indirect: indirect_weights(geo, quads, &groups),
+            typical: [0.0; 3],
+            indirect: tolerance::indirect_weights(geo, quads, &groups),
             rho: quads
                 .iter()
                 .map(|q| q.material.reflectance.iter().copied().fold(0.0, f64::max))
@@ -317,6 +318,14 @@ impl<'g> Hierarchy<'g> {
             .extract_if(.., |l| self.outgrown(l.recv, l.src, l.factors))
             .collect();
         again.extend(outgrown.iter().map(|l| (l.recv, l.src)));
+        // the partly visible links made before B was known carry the share of the rays that
+        // got through: after the first solve they are judged again, and linked with the share
+        // of the light ([`refine::Factors::unlit`]); their blocks are not kept
+        let unlit: Vec<(u32, u32)> = keep
+            .extract_if(.., |l| l.factors.unlit)
+            .map(|l| (l.recv, l.src))
+            .collect();
+        again.extend(unlit);
         let mut blocks: std::collections::HashMap<(u32, u32), Link> =
             outgrown.into_iter().map(|l| ((l.recv, l.src), l)).collect();
         let mut reopened = 0;
@@ -667,46 +676,6 @@ fn gather(h: &mut [Rgb], block: &[f64], b: &[Rgb]) {
             }
         }
     }
-}
-
-/// Per patch: how many of the scene's surfaces (as the document names them: a mesh counts
-/// once) that emit nothing face its surface (at least 1), the weight w_R of the oracle for
-/// inter-reflected light ([`refine`]). A surface of one patch faces another of one patch by
-/// their corners ([`Geometry::facing`]); a mesh by the bound of its triangles.
-fn indirect_weights(geo: &Geometry, quads: &[Quad], groups: &[Vec<u32>]) -> Vec<f64> {
-    let mut of = vec![0; quads.len()];
-    for (g, members) in groups.iter().enumerate() {
-        members.iter().for_each(|&p| of[p as usize] = g);
-    }
-    let bounds: Vec<Bound> = groups
-        .iter()
-        .map(|g| Bound::of_patches(&geo.quads, g))
-        .collect();
-    let dark: Vec<bool> = groups
-        .iter()
-        .map(|g| {
-            g.iter().all(|&p| {
-                quads[p as usize]
-                    .material
-                    .emission
-                    .iter()
-                    .all(|&e| e == 0.0)
-            })
-        })
-        .collect();
-    let faces = |a: usize, b: usize| match (&groups[a][..], &groups[b][..]) {
-        ([i], [j]) => geo.facing(*i as usize, *j as usize),
-        _ => bounds[a].facing(&bounds[b]),
-    };
-    let weight: Vec<f64> = (0..groups.len())
-        .map(|a| {
-            let n = (0..groups.len())
-                .filter(|&b| b != a && dark[b] && faces(a, b))
-                .count();
-            n.max(1) as f64
-        })
-        .collect();
-    of.iter().map(|&g| weight[g]).collect()
 }
 
 /// The patches of each surface as the document names them, in the order of their first.

@@ -17,13 +17,13 @@
 //! and S; such a pair is judged against [`CONTACT_SHARE`] of the tolerance, before any ray,
 //! and split on the receiver's side unless the receiver is the smaller. A pair none of whose
 //! n rays got through takes 3/n for the factor, the rays' bound on what they missed
-//! ([`crate::three_d::visibility::unseen_bound`]). w_R = 1 when S emits;
-//! for inter-reflected light it is the number of non-emitting surfaces facing R's surface: the
-//! tolerance is shared among them, because R gathers from all of them and their errors add up
-//! with one sign (a coarse link averages a source's bright spot over a kernel that peaks at
-//! it, so it carries too little: with w_R = 1 every surface of the Cornell box came out 1–3 %
-//! low). When err is above ε times the brightest emission (less on a dim receiver surface,
-//! [`DIM_KNEE`]), an element is split (down to the
+//! ([`crate::three_d::visibility::unseen_bound`]). w_R = 1 when S emits; for inter-reflected
+//! light it is the number of sources that carry as much light to R as the largest one
+//! ([`super::tolerance`]): R gathers from all of them and their errors add up with one sign (a
+//! coarse link averages a source's bright spot over a kernel that peaks at it, so it carries
+//! too little: with w_R = 1 every surface of the Cornell box came out 1–3 % low). When err is
+//! above ε times the brightest emission (less on a dim receiver, [`super::tolerance`]), an
+//! element is split (down to the
 //! finest level allowed: the source when D_S is most of the error, else the larger, except that
 //! a receiver coarser than [`receiver_first`] goes first, and only where the split lowers the
 //! estimate: `Hierarchy::splits`) and its children are linked instead;
@@ -33,7 +33,11 @@
 //! a partly visible one is split), so the judging rays' fraction is biased over the accepted
 //! links, and always the same way. Bars 4 cm wide across a window that the rays of a pair
 //! happened to miss made the far wall 2.6 % bright (`tests/path_traced.rs`); fresh rays are
-//! independent of the verdict, and their fraction is not.
+//! independent of the verdict, and their fraction is not. Once B is known, each fresh ray
+//! is weighted by the source's B where it ends ([`Hierarchy::light_at`]): the fraction is the
+//! share of the light that is not stopped, as a cluster link's is, because the part of a
+//! source that an occluder hides from a receiver is most often in the occluder's shadow too.
+//! The partly visible links made before the first solve are judged again after it.
 
 use super::clustered::{ClusterLink, ClusterVerdict};
 use super::tree::{push, Element, NONE};
@@ -47,7 +51,9 @@ use crate::three_d::geometry::{add, dot, norm, normalize, quad_quad, scale, sub}
 use crate::three_d::projection::VISIBILITY_GRID;
 use crate::three_d::steps::{Steps, STEP};
 use crate::three_d::transfer::{self, Integrand};
-use crate::three_d::visibility::{pair_seed, unseen_bound, visible_fraction_over, Seen};
+use crate::three_d::visibility::{
+    pair_seed, unseen_bound, visible_fraction_over, visible_share_of_light, Seen,
+};
 use rayon::prelude::*;
 
 /// The share of the tolerance for a receiver along a line where another surface stands on its
@@ -58,13 +64,13 @@ use rayon::prelude::*;
 /// half of it, +14 / +3 / −0.4 %, for 65 k → 70 k links (a quarter: +4 / −4 / −5 %, 77 k).
 pub(super) const CONTACT_SHARE: f64 = 0.5;
 
-/// A receiver surface whose mean B is below this share of the typical B (the area-weighted
-/// mean over the non-emitting surfaces) is dim: the oracle's tolerance for it shrinks with
-/// the cube of the ratio ([`Hierarchy::tolerance`]), down to [`DIM_SHARE`].
-const DIM_KNEE: f64 = 0.5;
-
-/// The least share of the tolerance for a dim receiver surface.
-const DIM_SHARE: f64 = 0.0625;
+/// Whether the triangle with vertices `v` (in a surface's (s, t)) holds the point (s, t),
+/// its edges included.
+fn holds(v: [[f64; 2]; 3], s: f64, t: f64) -> bool {
+    let side = |p: [f64; 2], q: [f64; 2]| (q[0] - p[0]) * (t - p[1]) - (q[1] - p[1]) * (s - p[0]);
+    let d = [side(v[0], v[1]), side(v[1], v[2]), side(v[2], v[0])];
+    !(d.iter().any(|&x| x < -1e-12) && d.iter().any(|&x| x > 1e-12))
+}
 
 /// The level above which a receiver is split before its source when a pair is over the
 /// tolerance: an 8 × 8 split of its surface for constants, 4 × 4 for polynomials of order 1
@@ -102,6 +108,10 @@ pub(super) struct Factors {
     /// Whether the receiver touches a contact line and something may come between it and
     /// the source ([`CONTACT_SHARE`]).
     pub(super) contact: bool,
+    /// Whether the pair was linked with a visible fraction below 1 before B was known, as
+    /// the share of the rays rather than of the light: judged again once after the first
+    /// solve ([`Hierarchy::light_at`]).
+    pub(super) unlit: bool,
 }
 
 /// What the oracle makes of a pair.
@@ -318,48 +328,38 @@ impl Hierarchy<'_> {
             .any(|line| crate::three_d::cover::meets(line, p.s, p.t))
     }
 
-    /// The oracle's tolerance for receiver `r`: ε times the brightest emission, shrunk on a
-    /// dim surface. The estimate is absolute, so a surface at a tenth of the typical B takes
-    /// links ten times too coarse for the same relative error; on the Cornell box the blocks'
-    /// unlit sides (B at 0.1–0.3 of typical) came out +2.0 to +2.9 % against a path tracer,
-    /// the walls within 0.2 %. Tightening in proportion to B (a relative tolerance) brought
-    /// the sides within 1.4 % for 25 % more links, most of them on the coloured walls (B at
-    /// 0.5 of typical), which gained nothing they needed; the cube below [`DIM_KNEE`] leaves
-    /// those walls alone and gives the sides ⅛ of the tolerance: every surface within 1 %,
-    /// for 5 % more links. Since coarse receivers are split before their sources
-    /// ([`receiver_first`]), the darkest side (the short block's front, B at a tenth of
-    /// typical) needs 1/16: +1.51 % red with ⅛, +0.84 % with 1/16, for 1 % more links. Before
-    /// the first solve B is only E, and the whole tolerance holds.
-    pub(super) fn tolerance(&self, r: u32) -> f64 {
-        if self.typical <= 0.0 {
-            return self.threshold;
+    /// The radiosity (mean of the channels) at (s, t) of the surface of element `e`, as far as
+    /// the tree below `e` knows it: the mean of the leaf that holds the point, or where the
+    /// point is covered, the mean of what `e` sends there (a partly covered element sends its
+    /// polynomial over the whole of it, and the rays take the covered part out). The weight
+    /// of a ray's end in a link's visible fraction ([`visible_share_of_light`]); at least a
+    /// tiny positive number, so that a dark source still has a fraction.
+    pub(super) fn light_at(&self, e: u32, s: f64, t: f64) -> f64 {
+        let mean = |el: &Element, c: [f64; 3]| c.iter().sum::<f64>() / 3.0 / el.area.sqrt();
+        let source = &self.elements[e as usize];
+        let surface = source.piece.surface;
+        if self.masks[surface]
+            .as_ref()
+            .is_some_and(|m| m.covered(s, t))
+        {
+            return mean(source, source.sent0()).max(f64::MIN_POSITIVE);
         }
-        let surface = self.elements[r as usize].piece.surface;
-        let dim = self.mean_radiosity(surface) / (DIM_KNEE * self.typical);
-        self.threshold * dim.powi(3).clamp(DIM_SHARE, 1.0)
-    }
-
-    /// The mean over the channels of surface `i`'s mean B.
-    pub(super) fn mean_radiosity(&self, i: usize) -> f64 {
-        let root = &self.elements[i];
-        root.b[0].iter().sum::<f64>() / 3.0 / root.area.sqrt()
-    }
-
-    /// The area-weighted mean over the non-emitting surfaces of [`Self::mean_radiosity`]
-    /// (0 when there are none, or before the first solve).
-    pub(super) fn typical_radiosity(&self) -> f64 {
-        let (mut sum, mut area) = (0.0, 0.0);
-        for (i, q) in self.quads.iter().enumerate() {
-            if q.material.emission.iter().all(|&e| e == 0.0) {
-                let a = self.elements[i].area;
-                sum += self.mean_radiosity(i) * a;
-                area += a;
+        let tri = self.geo.quads[surface].tri;
+        let mut e = e;
+        loop {
+            let el = &self.elements[e as usize];
+            if el.children == NONE {
+                return mean(el, el.b[0]).max(f64::MIN_POSITIVE);
             }
-        }
-        if area > 0.0 {
-            sum / area
-        } else {
-            0.0
+            e = if tri {
+                (el.children..el.children + 4)
+                    .find(|&c| holds(self.elements[c as usize].piece.triangle(), s, t))
+                    .unwrap_or(el.children)
+            } else {
+                let ds = u32::from(s >= 0.5 * (el.piece.s[0] + el.piece.s[1]));
+                let dt = u32::from(t >= 0.5 * (el.piece.t[0] + el.piece.t[1]));
+                el.children + 2 * dt + ds
+            };
         }
     }
 
@@ -436,6 +436,7 @@ impl Hierarchy<'_> {
             f,
             smooth,
             contact: false,
+            unlit: false,
         };
         if let Some(v) = split(unsure) {
             return (v, 0);
@@ -460,6 +461,7 @@ impl Hierarchy<'_> {
                     f,
                     smooth: 1.0,
                     contact,
+                    unlit: false,
                 },
             );
             if kernel + detail > CONTACT_SHARE * thr {
@@ -506,6 +508,7 @@ impl Hierarchy<'_> {
                 smooth
             },
             contact,
+            unlit: false,
         };
         if let Some(v) = split(x) {
             return (v, rays);
@@ -514,9 +517,29 @@ impl Hierarchy<'_> {
         // it: a pair is kept unsplit more often when its rays happened to miss an occluder
         // (a bar across a window, all of whose rays passed) or to find no gap, so the judging
         // rays' fraction errs with one sign over the pairs kept; fresh rays are independent
-        // of the verdict
+        // of the verdict. Each is weighted by the source's B where it ends, once B is known:
+        // the share of the light, not of the rays
+        let mut x = x;
         if !clear {
-            v = visible_fraction_over(bvh, pr, mask, ps, link_grid(used), seed ^ 2, &mut rays);
+            let lit = self.typical.iter().any(|&b| b > 0.0);
+            let light = |s_: f64, t_: f64| {
+                if lit {
+                    self.light_at(s, s_, t_)
+                } else {
+                    1.0
+                }
+            };
+            v = visible_share_of_light(
+                bvh,
+                pr,
+                mask,
+                ps,
+                link_grid(used),
+                seed ^ 2,
+                &mut rays,
+                &light,
+            );
+            x.unlit = !lit && v.whole < 1.0;
         }
         if v.whole > 0.0 {
             (Verdict::Link(x, v), rays)
@@ -855,6 +878,7 @@ pub(super) mod tests {
             f: estimate.0,
             smooth: 1.0,
             contact: true,
+            unlit: false,
         };
         let (kernel, detail) = h.error(floor, light, contact);
         assert!(kernel > 0.0);
@@ -872,44 +896,6 @@ pub(super) mod tests {
         let first = h.split(floor);
         let beyond: Vec<bool> = (0..4).map(|i| h.at_contact(first + i)).collect();
         assert_eq!(beyond, vec![true, false, true, false]);
-    }
-
-    /// w_R counts the surfaces that emit nothing and face the receiver's: in a closed cube
-    /// with an emitting ceiling, the floor and each wall see four of them (not themselves,
-    /// not the ceiling), the ceiling five.
-    #[test]
-    fn the_indirect_weight_counts_the_dark_surfaces_facing_the_receiver() {
-        let quads = &cube();
-        let geo = Geometry::new(quads);
-        let h = Hierarchy::new(&geo, quads, 1, Sizing::new(&geo.quads, None, None), 1e-3);
-        assert_eq!(h.indirect, vec![4.0, 5.0, 4.0, 4.0, 4.0, 4.0]);
-    }
-
-    /// The tolerance is ε times the brightest emission; after a solve, a surface whose mean B
-    /// is below [`DIM_KNEE`] of the typical gets the cube of the ratio of it, down to
-    /// [`DIM_SHARE`].
-    #[test]
-    fn a_dim_surface_gets_a_share_of_the_tolerance() {
-        let quads = &cube();
-        let geo = Geometry::new(quads);
-        let mut h = Hierarchy::new(&geo, quads, 1, Sizing::new(&geo.quads, None, None), 1e-3);
-        assert_eq!(h.tolerance(0), 1e-3);
-        // the floor at B = ½ and the walls at 2: typical (½ + 4 · 2) / 5 = 1.7
-        let set = |h: &mut Hierarchy, i: usize, b: f64| {
-            let a = h.elements[i].area;
-            h.elements[i].b[0] = [b * a.sqrt(); 3];
-        };
-        set(&mut h, 0, 0.5);
-        (2..6).for_each(|i| set(&mut h, i, 2.0));
-        h.typical = h.typical_radiosity();
-        assert!((h.typical - 1.7).abs() < 1e-12);
-        let expect = 1e-3 * (0.5 / (DIM_KNEE * 1.7f64)).powi(3);
-        assert!(expect < 1e-3 && expect > 1e-3 * DIM_SHARE);
-        assert!((h.tolerance(0) - expect).abs() < 1e-15);
-        assert_eq!(h.tolerance(2), 1e-3);
-        set(&mut h, 0, 0.01);
-        h.typical = h.typical_radiosity();
-        assert_eq!(h.tolerance(0), 1e-3 * DIM_SHARE);
     }
 
     /// Receivers coarser than an 8 × 8 split of their surface at order 0, 4 × 4 at orders 1
@@ -1047,6 +1033,7 @@ pub(super) mod tests {
             f: estimate.0,
             smooth: 1.0,
             contact: false,
+            unlit: false,
         };
         let whole = h.error(floor, light, unsure).0;
         // a tolerance above the estimate before any ray (the kernel's smoothness factor,
