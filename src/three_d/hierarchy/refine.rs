@@ -335,21 +335,20 @@ impl Hierarchy<'_> {
     /// of a ray's end in a link's visible fraction ([`visible_share_of_light`]); at least a
     /// tiny positive number, so that a dark source still has a fraction.
     pub(super) fn light_at(&self, e: u32, s: f64, t: f64) -> f64 {
-        let mean = |el: &Element, c: [f64; 3]| c.iter().sum::<f64>() / 3.0 / el.area.sqrt();
         let source = &self.elements[e as usize];
         let surface = source.piece.surface;
         if self.masks[surface]
             .as_ref()
             .is_some_and(|m| m.covered(s, t))
         {
-            return mean(source, source.sent0()).max(f64::MIN_POSITIVE);
+            return source.mean_of(&[source.sent0()]).max(f64::MIN_POSITIVE);
         }
         let tri = self.geo.quads[surface].tri;
         let mut e = e;
         loop {
             let el = &self.elements[e as usize];
             if el.children == NONE {
-                return mean(el, el.b[0]).max(f64::MIN_POSITIVE);
+                return el.mean_of(&el.b).max(f64::MIN_POSITIVE);
             }
             e = if tri {
                 (el.children..el.children + 4)

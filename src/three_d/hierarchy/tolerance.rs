@@ -188,7 +188,7 @@ impl Hierarchy<'_> {
     /// The mean over the channels of surface `i`'s mean B.
     pub(super) fn mean_radiosity(&self, i: usize) -> f64 {
         let root = &self.elements[i];
-        root.b[0].iter().sum::<f64>() / 3.0 / root.area.sqrt()
+        root.mean_of(&root.b)
     }
 
     /// Per channel, the area-weighted mean B over the non-emitting surfaces (0 when there are

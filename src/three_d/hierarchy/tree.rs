@@ -103,6 +103,12 @@ impl Element {
             }
         }
     }
+    /// The mean over the element and the channels of the polynomial with coefficients `c`
+    /// (its constant coefficient over √area, in the orthonormal basis).
+    pub(super) fn mean_of(&self, c: &[Rgb]) -> f64 {
+        c[0].iter().sum::<f64>() / 3.0 / self.area.sqrt()
+    }
+
     /// The brightness the oracle weighs a transfer by: the mean of B (largest channel) plus
     /// the peak emission inside, so that a small light on a large surface is not averaged away.
     pub(super) fn brightness(&self) -> f64 {
