@@ -461,8 +461,9 @@ fn kernel_error_3d(
 ) -> Result<KernelError3d, Cancelled> {
     progress.check()?;
     // eq. (5) over every pair of patches would cost as much as the solve on a mesh (and its
-    // cells are the parallelograms'): on a scene with triangles the hierarchy samples it
-    if quads.iter().any(|q| q.triangle) {
+    // cells are the parallelograms'), and s² quadratures on many surfaces: there the
+    // hierarchy has sampled it
+    if sol.kernel_error_sampling.is_some() {
         return Ok((sol.kernel_error, sol.left_out.clone()));
     }
     let geo = three_d::Geometry::new(quads);

@@ -95,8 +95,9 @@ pub struct Metrics {
     pub kernel_relative_error: Option<f64>,
     /// The pairs of surfaces left out of eq. (5) because they touch.
     pub kernel_pairs_left_out: Vec<[String; 2]>,
-    /// On scenes with triangles, eq. (5) is sampled at random pairs of points rather than
-    /// integrated over every pair of surfaces: how, and its standard error.
+    /// On scenes with triangles, and hierarchical ones of more than 32 surfaces, eq. (5) is
+    /// sampled at random pairs of points rather than integrated over every pair of surfaces:
+    /// how, and its standard error.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kernel_error_sampling: Option<KernelErrorSampling>,
     /// Eq. (6), when a reference is set.

@@ -47,6 +47,7 @@ use crate::three_d::cover::{Exposure, Mask, Partial};
 use crate::three_d::geometry::Piece;
 use crate::three_d::projection::{piece_emission, Geometry};
 use crate::three_d::transfer::Accuracy;
+use crate::three_d::visibility::Seen;
 use rayon::prelude::*;
 use refine::{Factors, Link};
 use sizing::Sizing;
@@ -318,14 +319,9 @@ impl<'g> Hierarchy<'g> {
             .extract_if(.., |l| self.outgrown(l.recv, l.src, l.factors))
             .collect();
         again.extend(outgrown.iter().map(|l| (l.recv, l.src)));
-        // the partly visible links made before B was known carry the share of the rays that
-        // got through: after the first solve they are judged again, and linked with the share
-        // of the light ([`refine::Factors::unlit`]); their blocks are not kept
-        let unlit: Vec<(u32, u32)> = keep
-            .extract_if(.., |l| l.factors.unlit)
-            .map(|l| (l.recv, l.src))
-            .collect();
-        again.extend(unlit);
+        self.links = keep;
+        let lit = self.relight();
+        let mut keep = std::mem::take(&mut self.links);
         let mut blocks: std::collections::HashMap<(u32, u32), Link> =
             outgrown.into_iter().map(|l| ((l.recv, l.src), l)).collect();
         let mut reopened = 0;
@@ -373,10 +369,41 @@ impl<'g> Hierarchy<'g> {
             }
             None => true,
         });
+        pending.extend(lit);
         keep.extend(self.make_links(&pending, progress)?);
         self.links = keep;
         self.sort_links();
         Ok(refined)
+    }
+
+    /// Takes the partly visible links made before B was known out of the links: each gets
+    /// its visible fraction again from its own grid of fresh rays, as the share of the light
+    /// ([`refine::Factors::unlit`]), and is returned to be linked with it (or kept as hidden
+    /// when none of those rays gets through).
+    fn relight(&mut self) -> Vec<(u32, u32, Factors, Seen)> {
+        let unlit: Vec<Link> = self
+            .links
+            .extract_if(.., |l| l.factors.unlit.is_some())
+            .collect();
+        let relit: Vec<_> = unlit
+            .par_iter()
+            .map(|l| {
+                let (mut x, mut rays) = (l.factors, 0);
+                let n = x.unlit.take().map_or(0, usize::from);
+                let v = self.share_of_light(l.recv, l.src, n, &mut rays);
+                (l.recv, l.src, x, v, rays)
+            })
+            .collect();
+        let mut lit = Vec::with_capacity(relit.len());
+        for (r, s, x, v, rays) in relit {
+            self.rays += rays;
+            if v.whole > 0.0 {
+                lit.push((r, s, x, v));
+            } else {
+                self.hidden.push((r, s, x));
+            }
+        }
+        lit
     }
 
     fn sort_links(&mut self) {
@@ -848,27 +875,20 @@ pub(crate) fn solve(
         },
         job.output.coefficients,
     );
-    // Σ‖block‖² per pair of surfaces, for eq. (5) by Parseval over the link blocks
-    // (none on a scene with triangles, where eq. (5) is not measured; only meshes, all of
-    // triangles, have clusters, so every link here is between elements)
+    // Σ‖block‖² per pair of surfaces, for eq. (5) by Parseval over the link blocks (none
+    // where eq. (5) is sampled instead; only meshes, all of triangles, have clusters, and
+    // eq. (5) is sampled with triangles, so every link here is between elements)
     let surfaces = h.quads.len();
-    let with_triangles = h.geo.quads.iter().any(|q| q.tri);
-    let mut kept_squares = vec![
-        0.0;
-        if with_triangles {
-            0
-        } else {
-            surfaces * surfaces
-        }
-    ];
-    for l in h.links.iter().filter(|_| !with_triangles) {
+    let sample = kernel_error::sampled_on(h.geo.quads.iter().any(|q| q.tri), quads.len());
+    let mut kept_squares = vec![0.0; if sample { 0 } else { surfaces * surfaces }];
+    for l in h.links.iter().filter(|_| !sample) {
         let (r, s) = (&h.elements[l.recv as usize], &h.elements[l.src as usize]);
         kept_squares[r.piece.surface * surfaces + s.piece.surface] +=
             l.block.iter().map(|v| v * v).sum::<f64>();
     }
     // eq. (5) over the pairs of surfaces needs their blocks' squares, which cluster links do
-    // not have: with triangles it is sampled
-    let sampled = with_triangles.then(|| {
+    // not have, and costs s² quadratures: with triangles or many surfaces it is sampled
+    let sampled = sample.then(|| {
         let t = Instant::now();
         let s = h.sampled_kernel_error(&surface_groups(quads), kernel_error::PAIRS);
         timings.insert("kernel_error".into(), ms(t));
@@ -1029,6 +1049,48 @@ mod tests {
         set(&mut h, 3, 2.01 * BOUND_FACTOR);
         let reason = h.unbounded(0.1).expect("diverged");
         assert!(reason.contains("surface 3"), "{reason}");
+    }
+
+    /// The partly visible links made before B is known carry the share of the rays through
+    /// the first solve; then each takes the share of the light from its own grid of fresh
+    /// rays (2.25 times the judging ones). In the corner under the meshed ceiling, the light
+    /// hung below the ceiling hides part of it from the floor and the wall, and the ceiling is
+    /// brightest above the light: the share of the light differs from the share of the rays.
+    #[test]
+    fn links_made_before_b_is_known_take_the_share_of_the_light_after_the_first_solve() {
+        let quads = &corner_under_a_meshed_ceiling();
+        let geo = Geometry::new(quads);
+        let sizing = Sizing::new(&geo.quads, Some(0.25), None);
+        let mut h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
+        h.link_all(&crate::progress::Silent).unwrap();
+        let unlit: Vec<(u32, u32, u8)> = h
+            .links
+            .iter()
+            .filter_map(|l| l.factors.unlit.map(|n| (l.recv, l.src, n)))
+            .collect();
+        assert!(unlit.len() > 10, "{} partly visible links", unlit.len());
+        while h.sweep() > 1e-6 {}
+        h.typical = h.typical_radiosity();
+        let (links, hidden) = (h.links.len(), h.hidden.len());
+        let lit = h.relight();
+        assert!(h.links.iter().all(|l| l.factors.unlit.is_none()));
+        assert_eq!(links - h.links.len(), unlit.len());
+        assert_eq!(lit.len() + h.hidden.len() - hidden, unlit.len());
+        let mut differ = 0;
+        for (r, s, x, v) in lit {
+            assert!(x.unlit.is_none());
+            let &(_, _, n) = unlit.iter().find(|u| (u.0, u.1) == (r, s)).unwrap();
+            let n = usize::from(n);
+            assert_eq!(v, h.share_of_light(r, s, n, &mut 0), "{r} ← {s}");
+            let (pr, ps) = (h.elements[r as usize].piece, h.elements[s as usize].piece);
+            let seed = crate::three_d::visibility::pair_seed(h.identity(r), h.identity(s)) ^ 2;
+            let mask = h.masks[pr.surface].as_ref();
+            let rays = crate::three_d::visibility::visible_fraction_over(
+                &geo.bvh, pr, mask, ps, n, seed, &mut 0,
+            );
+            differ += usize::from((rays.whole - v.whole).abs() > 1e-3);
+        }
+        assert!(differ > 0, "the light changed no fraction");
     }
 
     /// Gauss–Seidel sweeps reach the fixed point of the Jacobi sweeps, on the same links, in

@@ -37,7 +37,8 @@
 //! is weighted by the source's B where it ends ([`Hierarchy::light_at`]): the fraction is the
 //! share of the light that is not stopped, as a cluster link's is, because the part of a
 //! source that an occluder hides from a receiver is most often in the occluder's shadow too.
-//! The partly visible links made before the first solve are judged again after it.
+//! The partly visible links made before the first solve carry the judging rays' fraction
+//! through it, and take the share of the light from fresh rays after it.
 
 use super::clustered::{ClusterLink, ClusterVerdict};
 use super::tree::{push, Element, NONE};
@@ -108,10 +109,10 @@ pub(super) struct Factors {
     /// Whether the receiver touches a contact line and something may come between it and
     /// the source ([`CONTACT_SHARE`]).
     pub(super) contact: bool,
-    /// Whether the pair was linked with a visible fraction below 1 before B was known, as
-    /// the share of the rays rather than of the light: judged again once after the first
-    /// solve ([`Hierarchy::light_at`]).
-    pub(super) unlit: bool,
+    /// Linked before B was known with a visible fraction below 1, the share of the rays
+    /// rather than of the light: the side of the grid of fresh rays that take its fraction
+    /// again, weighted by the light, after the first solve ([`Hierarchy::share_of_light`]).
+    pub(super) unlit: Option<u8>,
 }
 
 /// What the oracle makes of a pair.
@@ -143,7 +144,7 @@ pub(super) struct Link {
 
 impl Hierarchy<'_> {
     /// A stable identity of an element (surface, level, cell) for seeding its rays.
-    fn identity(&self, e: u32) -> u64 {
+    pub(super) fn identity(&self, e: u32) -> u64 {
         let el = &self.elements[e as usize];
         ((el.piece.surface as u64) << 48)
             | ((el.level as u64) << 40)
@@ -328,6 +329,23 @@ impl Hierarchy<'_> {
             .any(|line| crate::three_d::cover::meets(line, p.s, p.t))
     }
 
+    /// The visible fraction of the pair (`r`, `s`) from a fresh `n` × `n` grid of rays,
+    /// independent of the rays that judged it, each weighted by the source's B where it ends
+    /// ([`visible_share_of_light`], [`Hierarchy::light_at`]).
+    pub(super) fn share_of_light(&self, r: u32, s: u32, n: usize, rays: &mut u64) -> Seen {
+        let pr = self.elements[r as usize].piece;
+        visible_share_of_light(
+            &self.geo.bvh,
+            pr,
+            self.masks[pr.surface].as_ref(),
+            self.elements[s as usize].piece,
+            n,
+            pair_seed(self.identity(r), self.identity(s)) ^ 2,
+            rays,
+            &|s_, t_| self.light_at(s, s_, t_),
+        )
+    }
+
     /// The radiosity (mean of the channels) at (s, t) of the surface of element `e`, as far as
     /// the tree below `e` knows it: the mean of the leaf that holds the point, or where the
     /// point is covered, the mean of what `e` sends there (a partly covered element sends its
@@ -435,7 +453,7 @@ impl Hierarchy<'_> {
             f,
             smooth,
             contact: false,
-            unlit: false,
+            unlit: None,
         };
         if let Some(v) = split(unsure) {
             return (v, 0);
@@ -460,7 +478,7 @@ impl Hierarchy<'_> {
                     f,
                     smooth: 1.0,
                     contact,
-                    unlit: false,
+                    unlit: None,
                 },
             );
             if kernel + detail > CONTACT_SHARE * thr {
@@ -485,15 +503,19 @@ impl Hierarchy<'_> {
         } else {
             visible_fraction_over(bvh, pr, mask, ps, grid, seed, &mut rays)
         };
-        // a partly visible pair gets four rays per step cell of the receiver, so that its
-        // visible fraction is a step over those cells rather than over the quarters (a
-        // constant, at order 0, gains nothing from it)
+        // a partly visible pair's fresh rays put at least four in each step cell of the
+        // receiver ([`link_grid`] of this grid), so that its visible fraction is a step over
+        // those cells rather than over the quarters (a constant, at order 0, gains nothing
+        // from it). The judging rays have shown it partly visible, all that its verdict
+        // reads: more of them would not change it (a finer grid that happened to find it
+        // clear would only give it a smoothness credit that the first rays disproved)
         let fine = 2 * STEP;
-        let mut used = grid;
-        if self.k > 1 && grid < fine && v.whole > 0.0 && v.whole < 1.0 {
-            v = visible_fraction_over(bvh, pr, mask, ps, fine, seed ^ 1, &mut rays);
-            used = fine;
-        }
+        let partial = v.whole > 0.0 && v.whole < 1.0;
+        let used = if self.k > 1 && partial {
+            grid.max(fine)
+        } else {
+            grid
+        };
         // partly visible: no smoothness credit. Hidden as far as the sampled rays can tell: a
         // big pair's light may pass through a gap none of them found, but no more of it than
         // the rays' bound on what they missed ([`unseen_bound`])
@@ -507,7 +529,7 @@ impl Hierarchy<'_> {
                 smooth
             },
             contact,
-            unlit: false,
+            unlit: None,
         };
         if let Some(v) = split(x) {
             return (v, rays);
@@ -520,25 +542,18 @@ impl Hierarchy<'_> {
         // the share of the light, not of the rays
         let mut x = x;
         if !clear {
-            let lit = self.typical.iter().any(|&b| b > 0.0);
-            let light = |s_: f64, t_: f64| {
-                if lit {
-                    self.light_at(s, s_, t_)
-                } else {
-                    1.0
-                }
-            };
-            v = visible_share_of_light(
-                bvh,
-                pr,
-                mask,
-                ps,
-                link_grid(used),
-                seed ^ 2,
-                &mut rays,
-                &light,
-            );
-            x.unlit = !lit && v.whole < 1.0;
+            let fresh = link_grid(used);
+            if self.typical.iter().any(|&b| b > 0.0) {
+                v = self.share_of_light(r, s, fresh, &mut rays);
+            } else if v.whole > 0.0 && v.whole < 1.0 {
+                // partly visible before B is known: the fraction is taken again with the
+                // light after the first solve, and the judging rays' stand in until then
+                // (fresh rays now, weighted alike, were a third of the Cornell box's rays)
+                x.unlit = Some(fresh as u8);
+            } else {
+                v = visible_fraction_over(bvh, pr, mask, ps, fresh, seed ^ 2, &mut rays);
+                x.unlit = (v.whole < 1.0).then_some(fresh as u8);
+            }
         }
         if v.whole > 0.0 {
             (Verdict::Link(x, v), rays)
@@ -766,7 +781,9 @@ impl Hierarchy<'_> {
 }
 
 /// The side of the grid of fresh rays whose visible fraction a kept pair carries, from the
-/// side `judged` of the grid that judged it: half as long again (2.25 times the rays). The
+/// side `judged` of the grid that judged it (or the finer grid that puts four rays in each
+/// step cell, for a partly visible pair at order 1 and above): half as long again (2.25
+/// times the rays). The
 /// judgement needs only which side of the tolerance an estimate falls; the fraction is read
 /// by the whole receiver. With as many fresh rays as judging ones, their noise put the
 /// Cornell box made of meshes 0.31 % from the box of parallelograms on its ceiling (the
@@ -877,7 +894,7 @@ pub(super) mod tests {
             f: estimate.0,
             smooth: 1.0,
             contact: true,
-            unlit: false,
+            unlit: None,
         };
         let (kernel, detail) = h.error(floor, light, contact);
         assert!(kernel > 0.0);
@@ -980,8 +997,10 @@ pub(super) mod tests {
                 Sizing::new(&geo.quads, Some(size), None),
                 1e-3,
             );
-            // every pair is accepted: only the rays are counted
+            // every pair is accepted: only the rays are counted, once B is known (before it, a
+            // partly visible pair carries its judging rays' fraction to the first solve)
             h.threshold = f64::INFINITY;
+            h.typical = [1.0; 3];
             assert_eq!(rays(&h, floor, light), want[0], "size {size}");
             if size > 4.0 {
                 assert!(!h.splittable(floor) && !h.splittable(light));
@@ -1032,7 +1051,7 @@ pub(super) mod tests {
             f: estimate.0,
             smooth: 1.0,
             contact: false,
-            unlit: false,
+            unlit: None,
         };
         let whole = h.error(floor, light, unsure).0;
         // a tolerance above the estimate before any ray (the kernel's smoothness factor,
