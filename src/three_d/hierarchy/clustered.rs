@@ -26,8 +26,10 @@
 //! hidden) carries V from n fresh rays, not from those that judged it, as the element pairs
 //! do ([`super::refine`]): with the judging rays, a mesh window behind thin bars lit the
 //! room's walls 1.2–3.3 % bright.
-//! The weights w_R and tolerances are those of the element links' oracle (with w_R = 1 the Cornell box
-//! made of meshes came out 1 % dark on its ceiling). When err is above the tolerance, the end
+//! The tolerances are those of the element links' oracle, and w_R is the weight of the
+//! receiver's largest source ([`super::tolerance`]: a cluster may hold many surfaces, whose
+//! shares add up; with w_R = 1 the Cornell box made of meshes came out 1 % dark on its
+//! ceiling). When err is above the tolerance, the end
 //! with the larger box is split: a cluster into its two children, an element into its four; a
 //! cluster linked to itself into the four pairs of its children; but a source no larger than
 //! a receiver at its finest level is not split (`Hierarchy::splits`).
@@ -386,7 +388,7 @@ impl Hierarchy<'_> {
             reflected: el.area * mean,
             reflected_max: mean,
             rho: self.rho[surface],
-            weight: self.indirect[surface],
+            weight: self.indirect.largest(surface),
             tolerance: self.tolerance(e),
         }
     }

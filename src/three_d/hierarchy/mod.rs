@@ -83,9 +83,9 @@ struct Hierarchy<'g> {
     typical: [f64; 3],
     /// Largest channel of ρ per surface.
     rho: Vec<f64>,
-    /// Per receiver patch: the weight w_R of the oracle for inter-reflected light
-    /// ([`tolerance`]).
-    indirect: Vec<f64>,
+    /// The weights w_RS of the oracle for inter-reflected light, per pair of document
+    /// surfaces ([`tolerance`]).
+    indirect: tolerance::Weights,
     accuracy: Accuracy,
     /// The grid on which pairs of pieces are compared for congruence: 2⁻³² of the scene.
     unit: f64,

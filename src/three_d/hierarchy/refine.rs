@@ -6,7 +6,7 @@
 //! cannot represent, plus what reading the source's B as one polynomial loses:
 //!
 //! ```text
-//! err = w_R · ρ_R · F̂(R ← S) · (B̄_S · (d / (d + dist))^(m+1) + D_S)
+//! err = w_RS · ρ_R · F̂(R ← S) · (B̄_S · (d / (d + dist))^(m+1) + D_S)
 //! ```
 //!
 //! with F̂ the largest point-to-piece form factor from a few points of R to S (in closed
@@ -17,11 +17,11 @@
 //! and S; such a pair is judged against [`CONTACT_SHARE`] of the tolerance, before any ray,
 //! and split on the receiver's side unless the receiver is the smaller. A pair none of whose
 //! n rays got through takes 3/n for the factor, the rays' bound on what they missed
-//! ([`crate::three_d::visibility::unseen_bound`]). w_R = 1 when S emits; for inter-reflected
-//! light it is the number of sources that carry as much light to R as the largest one
-//! ([`super::tolerance`]): R gathers from all of them and their errors add up with one sign (a
-//! coarse link averages a source's bright spot over a kernel that peaks at it, so it carries
-//! too little: with w_R = 1 every surface of the Cornell box came out 1–3 % low). When err is
+//! ([`crate::three_d::visibility::unseen_bound`]). w_RS = 1 when S emits; for inter-reflected
+//! light it is the inverse of S's share of R's tolerance ([`super::tolerance`]): R gathers
+//! from all its sources and their errors add up with one sign (a coarse link averages a
+//! source's bright spot over a kernel that peaks at it, so it carries too little: with
+//! w = 1 every surface of the Cornell box came out 1–3 % low). When err is
 //! above ε times the brightest emission (less on a dim receiver, [`super::tolerance`]), an
 //! element is split (down to the
 //! finest level allowed: the source when D_S is most of the error, else the larger, except that
@@ -429,7 +429,8 @@ impl Hierarchy<'_> {
         let w = if es.peak > 0.0 {
             1.0
         } else {
-            self.indirect[self.elements[r as usize].piece.surface]
+            self.indirect
+                .between(self.elements[r as usize].piece.surface, es.piece.surface)
         };
         (
             w * rho * es.brightness() * x.f * x.smooth,
