@@ -156,7 +156,7 @@ fn a_small_object_converges_as_epsilon_shrinks() {
 /// four of its standard errors. (Not yet every triangle within 5 %: those at the bottom of the
 /// ball that rests on the floor, whose B is a tenth of the ball's mean, see little but the
 /// floor's shadow 3 cm below them, which the floor's links get right only to the floor's
-/// tolerance; they come out 118 % too bright beyond the noise at ε = 1e-3, 44 % at 2.5e-4.
+/// tolerance; they come out 126 % too bright beyond the noise at ε = 1e-3, 24 % at 2.5e-4.
 /// The floor's cell around the contact point is three times its reference, 0.035 against
 /// 0.011: the links from the walls into that cell's ancestors are partly visible, with one
 /// visible fraction per quarter or step cell, and the visibility falls to 0 at the contact

@@ -1,7 +1,8 @@
 //! Eq. (5) of the slides, ∫∫(K − K̂)² / ∫∫K², sampled at random pairs of points, for scenes
 //! where integrating it is out of reach: with triangles, the pairs of patches are too many for
 //! a quadrature over each (10¹⁰ at 10⁵ triangles), and the cluster links hold no block whose
-//! squares Parseval could sum.
+//! squares Parseval could sum; on many parallelograms, whose s² quadratures take longer than
+//! the solve ([`INTEGRATED_PAIRS`]).
 //!
 //! The links tile the pairs of points that exchange light, so both integrals are sums over
 //! the links of integrals over their ends R × S. Each of M samples picks a link l with
