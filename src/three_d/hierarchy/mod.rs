@@ -1053,7 +1053,7 @@ mod tests {
 
     /// The partly visible links made before B is known carry the share of the rays through
     /// the first solve; then each takes the share of the light from its own grid of fresh
-    /// rays (2.25 times the judging ones). In the corner under the meshed ceiling, the light
+    /// rays (as many as judged it). In the corner under the meshed ceiling, the light
     /// hung below the ceiling hides part of it from the floor and the wall, and the ceiling is
     /// brightest above the light: the share of the light differs from the share of the rays.
     #[test]
