@@ -319,9 +319,7 @@ impl<'g> Hierarchy<'g> {
             .extract_if(.., |l| self.outgrown(l.recv, l.src, l.factors))
             .collect();
         again.extend(outgrown.iter().map(|l| (l.recv, l.src)));
-        self.links = keep;
-        let lit = self.relight();
-        let mut keep = std::mem::take(&mut self.links);
+        let lit = self.relight(&mut keep);
         let mut blocks: std::collections::HashMap<(u32, u32), Link> =
             outgrown.into_iter().map(|l| ((l.recv, l.src), l)).collect();
         let mut reopened = 0;
@@ -376,13 +374,12 @@ impl<'g> Hierarchy<'g> {
         Ok(refined)
     }
 
-    /// Takes the partly visible links made before B was known out of the links: each gets
+    /// Takes the partly visible links made before B was known out of `links`: each gets
     /// its visible fraction again from its own grid of fresh rays, as the share of the light
     /// ([`refine::Factors::unlit`]), and is returned to be linked with it (or kept as hidden
     /// when none of those rays gets through).
-    fn relight(&mut self) -> Vec<(u32, u32, Factors, Seen)> {
-        let unlit: Vec<Link> = self
-            .links
+    fn relight(&mut self, links: &mut Vec<Link>) -> Vec<(u32, u32, Factors, Seen)> {
+        let unlit: Vec<Link> = links
             .extract_if(.., |l| l.factors.unlit.is_some())
             .collect();
         let relit: Vec<_> = unlit
@@ -1072,7 +1069,9 @@ mod tests {
         while h.sweep() > 1e-6 {}
         h.typical = h.typical_radiosity();
         let (links, hidden) = (h.links.len(), h.hidden.len());
-        let lit = h.relight();
+        let mut kept = std::mem::take(&mut h.links);
+        let lit = h.relight(&mut kept);
+        h.links = kept;
         assert!(h.links.iter().all(|l| l.factors.unlit.is_none()));
         assert_eq!(links - h.links.len(), unlit.len());
         assert_eq!(lit.len() + h.hidden.len() - hidden, unlit.len());

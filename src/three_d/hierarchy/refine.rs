@@ -550,7 +550,7 @@ impl Hierarchy<'_> {
             let fresh = used;
             if self.typical.iter().any(|&b| b > 0.0) {
                 v = self.share_of_light(r, s, fresh, &mut rays);
-            } else if v.whole > 0.0 && v.whole < 1.0 {
+            } else if partial {
                 // partly visible before B is known: the fraction is taken again with the
                 // light after the first solve, and the judging rays' stand in until then
                 // (fresh rays now, weighted alike, were a third of the Cornell box's rays)
