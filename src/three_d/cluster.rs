@@ -226,6 +226,9 @@ pub struct Clusters {
     /// The areas of `order` that send or receive light ([`Clusters::weigh`]) summed up to
     /// each position (one more than the patches).
     prefix: Vec<f64>,
+    /// The light of `order` (the weighed area times the mean B it sends,
+    /// [`Clusters::weigh_light`]) summed up likewise; empty until weighed.
+    light: Vec<f64>,
     /// Each patch's place in `order`.
     position: Vec<u32>,
     /// The root of each group's tree: a cluster, or the group's only patch.
@@ -340,6 +343,7 @@ impl Clusters {
             nodes: Vec::new(),
             order: Vec::new(),
             prefix: vec![0.0],
+            light: Vec::new(),
             position: Vec::new(),
             roots: Vec::new(),
             starts: Vec::new(),
@@ -512,12 +516,55 @@ impl Clusters {
     /// The member of cluster `reference` at the share `u` ∈ [0, 1) of its area, in the order
     /// of its members: a member picked by area from a uniform `u`.
     pub(super) fn pick(&self, reference: u32, u: f64) -> usize {
+        self.pick_in(&self.prefix, reference, u)
+    }
+
+    /// The member of cluster `reference` at the share `u` ∈ [0, 1) of its light
+    /// ([`Clusters::weigh_light`]): a member picked by the light it sends.
+    pub(super) fn pick_by_light(&self, reference: u32, u: f64) -> usize {
+        self.pick_in(&self.light, reference, u)
+    }
+
+    fn pick_in(&self, prefix: &[f64], reference: u32, u: f64) -> usize {
         let (a, b) = self.get(reference).members;
         let (a, b) = (a as usize, b as usize);
-        let target = self.prefix[a] + u * (self.prefix[b] - self.prefix[a]);
-        // the first member whose run of area ends beyond the target
-        let k = a + self.prefix[a + 1..=b].partition_point(|&x| x <= target);
+        let target = prefix[a] + u * (prefix[b] - prefix[a]);
+        // the first member whose run ends beyond the target
+        let k = a + prefix[a + 1..=b].partition_point(|&x| x <= target);
         self.order[k.min(b - 1)] as usize
+    }
+
+    /// Weighs each patch's weighed area ([`Clusters::weigh`]) by `radiosity(patch)`, the
+    /// mean B it sends, for [`Clusters::pick_by_light`] and [`Clusters::light`].
+    pub(super) fn weigh_light(&mut self, radiosity: impl Fn(usize) -> f64) {
+        let mut sum = 0.0;
+        self.light.clear();
+        self.light.push(0.0);
+        for (k, &p) in self.order.iter().enumerate() {
+            sum += (self.prefix[k + 1] - self.prefix[k]) * radiosity(p as usize).max(0.0);
+            self.light.push(sum);
+        }
+    }
+
+    /// The light that cluster `reference`, or the patch `reference` names, sends
+    /// ([`Clusters::weigh_light`]; 0 before it is weighed).
+    pub(super) fn light(&self, reference: u32) -> f64 {
+        if self.light.is_empty() {
+            return 0.0;
+        }
+        let (a, b) = self.run(reference);
+        self.light[b] - self.light[a]
+    }
+
+    /// The run of `order` that cluster `reference`, or the patch `reference` names, holds.
+    fn run(&self, reference: u32) -> (usize, usize) {
+        if is_cluster(reference) {
+            let (a, b) = self.get(reference).members;
+            (a as usize, b as usize)
+        } else {
+            let p = self.position[reference as usize] as usize;
+            (p, p + 1)
+        }
     }
 
     /// Weighs each patch's area for [`Clusters::pick`] by `share(patch)`, the share of it
@@ -538,13 +585,7 @@ impl Clusters {
     /// The area of cluster `reference`, or of the patch `reference` names, that takes part
     /// in the transfer ([`Clusters::weigh`]).
     pub(super) fn weight(&self, reference: u32) -> f64 {
-        let (a, b) = if is_cluster(reference) {
-            let (a, b) = self.get(reference).members;
-            (a as usize, b as usize)
-        } else {
-            let p = self.position[reference as usize] as usize;
-            (p, p + 1)
-        };
+        let (a, b) = self.run(reference);
         self.prefix[b] - self.prefix[a]
     }
 
@@ -767,6 +808,53 @@ mod tests {
             assert_eq!(tree.takes_part(c), any);
         }
         assert!((0..tree.nodes.len()).any(|i| !tree.takes_part(CLUSTER | i as u32)));
+    }
+
+    /// Picked by light, a member comes up in proportion to its weighed area times its B:
+    /// never where either is 0, and a cluster's light is the sum of its members'.
+    #[test]
+    fn members_are_picked_by_the_light_they_send() {
+        let quads: Vec<Parallelogram> = (0..16)
+            .map(|k| {
+                let x = k as f64;
+                tri([x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 0.0, -1.0])
+            })
+            .collect();
+        let mut tree = Clusters::new(&quads, &[(0..16).collect()]);
+        let root = tree.starts[0];
+        assert_eq!(tree.light(root), 0.0, "no light before it is weighed");
+        // 0..4 covered; B = 1 on 4..12, 3 on 12..15, 0 on 15
+        tree.weigh(&quads, |p| f64::from(p >= 4));
+        let b = |p: usize| match p {
+            12..15 => 3.0,
+            15 => 0.0,
+            _ => 1.0,
+        };
+        tree.weigh_light(b);
+        // each patch's area is ½: the light 8 · ½ + 3 · 3 · ½
+        assert!(
+            (tree.light(root) - 8.5).abs() < 1e-12,
+            "{}",
+            tree.light(root)
+        );
+        let mut picked = [0usize; 16];
+        let n = 17_000;
+        for i in 0..n {
+            picked[tree.pick_by_light(root, (i as f64 + 0.5) / n as f64)] += 1;
+        }
+        for (p, &count) in picked.iter().enumerate() {
+            let want = if p < 4 {
+                0.0
+            } else {
+                0.5 * b(p) / 8.5 * n as f64
+            };
+            assert!((count as f64 - want).abs() <= 1.0, "{p}: {picked:?}");
+        }
+        for (i, _) in tree.nodes.iter().enumerate() {
+            let c = CLUSTER | i as u32;
+            let sum: f64 = tree.members(c).iter().map(|&m| tree.light(m)).sum();
+            assert!((tree.light(c) - sum).abs() < 1e-12);
+        }
     }
 
     #[test]

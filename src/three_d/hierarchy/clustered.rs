@@ -82,6 +82,10 @@ pub(super) struct ClusterLink {
     /// The part of `smooth` that is the sampling error of `visibility` (see
     /// [`Hierarchy::split_lowers`]).
     pub(super) sampled: f64,
+    /// Judged before B was known, when the points of a source that emits nothing were drawn
+    /// by area rather than by the light it sends ([`Hierarchy::cluster_visibility`]): judged
+    /// again after the first solve.
+    pub(super) unlit: bool,
 }
 
 /// What a source sends through its cluster links, per channel, summed over its members j
@@ -253,6 +257,28 @@ pub(super) struct ClusterLinkGeometry {
     pub(super) affine: bool,
     pub(super) smooth: f64,
     pub(super) sampled: f64,
+    pub(super) unlit: bool,
+}
+
+/// How [`Hierarchy::sample`] draws a point of an end: by area on a receiving end (again
+/// while it falls on a covered part), by area or by the light its members send on a
+/// sending one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Draw {
+    Receiving,
+    Area,
+    Light,
+}
+
+/// A point drawn on an end of a cluster link ([`Hierarchy::sample`]).
+struct Sample {
+    x: V3,
+    surface: usize,
+    normal: V3,
+    /// The element whose tree holds the point's B: a member patch's root, or the end.
+    element: u32,
+    /// The point in its surface's parameters.
+    at: (f64, f64),
 }
 
 /// The shape of one end of a link: its bound, centre and the largest diameter of a member.
@@ -401,6 +427,16 @@ impl Hierarchy<'_> {
         }
     }
 
+    /// Weighs the clusters' members by the light they send now, for drawing a source's points
+    /// by it ([`Hierarchy::cluster_visibility`]).
+    pub(super) fn weigh_light(&mut self) {
+        let elements = &self.elements;
+        self.clusters.weigh_light(|p| {
+            let root = &elements[p];
+            root.mean_of(&[root.sent0()])
+        });
+    }
+
     /// The oracle's estimate for a pair with a cluster at an end, with the factor `smooth`.
     fn cluster_error(&self, r: &State, s: &State, dist: f64, smooth: f64) -> f64 {
         let bound = |sum: f64, max: f64| {
@@ -517,12 +553,17 @@ impl Hierarchy<'_> {
         if v <= 0.0 {
             return (ClusterVerdict::Hidden(smooth), rays);
         }
+        // before B is known a source's points are drawn by the light it emits, or by area
+        // with the kernel alone where it emits none: the link is judged again once B is
+        // known ([`ClusterLink::unlit`])
+        let unlit = self.typical.iter().all(|&b| b <= 0.0);
         (
             ClusterVerdict::Link(ClusterLinkGeometry {
                 visibility: v,
                 affine,
                 smooth,
                 sampled,
+                unlit,
             }),
             rays,
         )
@@ -563,13 +604,27 @@ impl Hierarchy<'_> {
     /// counting its blocked rays too would take its share of the light twice. A sending end's
     /// point may fall there: a partly covered element's polynomial is that of its exposed part
     /// continued over the whole element, and its blocked rays take the continuation back out.
-    fn sample(&self, id: u32, receiving: bool, rng: &mut SplitMix) -> (V3, usize, V3) {
-        let mut point = ([0.0; 3], 0);
+    fn sample(&self, id: u32, draw: Draw, rng: &mut SplitMix) -> Sample {
+        let receiving = draw == Draw::Receiving;
+        let mut point = Sample {
+            x: [0.0; 3],
+            surface: 0,
+            normal: [0.0; 3],
+            element: 0,
+            at: (0.0, 0.0),
+        };
         for _ in 0..COVERED_DRAWS {
-            let piece = if is_cluster(id) {
-                crate::three_d::geometry::Piece::whole(self.clusters.pick(id, rng.next_f64()))
+            // the element the point lies in: a member patch's root, or the end itself
+            let (element, piece) = if is_cluster(id) {
+                let u = rng.next_f64();
+                let p = if draw == Draw::Light {
+                    self.clusters.pick_by_light(id, u)
+                } else {
+                    self.clusters.pick(id, u)
+                };
+                (p as u32, crate::three_d::geometry::Piece::whole(p))
             } else {
-                self.elements[id as usize].piece
+                (id, self.elements[id as usize].piece)
             };
             let q = &self.geo.quads[piece.surface];
             let (mut u, mut v) = (rng.next_f64(), rng.next_f64());
@@ -584,7 +639,13 @@ impl Hierarchy<'_> {
                     piece.t[0] + v * (piece.t[1] - piece.t[0]),
                 )
             };
-            point = (q.at(s, t), piece.surface);
+            point = Sample {
+                x: q.at(s, t),
+                surface: piece.surface,
+                normal: q.n,
+                element,
+                at: (s, t),
+            };
             let covered = || {
                 self.masks[piece.surface]
                     .as_ref()
@@ -594,14 +655,14 @@ impl Hierarchy<'_> {
                 break;
             }
         }
-        let (x, surface) = point;
-        (x, surface, self.geo.quads[surface].n)
+        point
     }
 
     /// The visible fraction between two ends: of [`CLUSTER_RAYS`] pairs of points, the share
     /// of the light they carry (those that face each other, each weighted by the kernel
-    /// between its points and by the mean B of its source's patch) that nothing stops (1 when
-    /// none face).
+    /// between its points and by the source's B where the ray ends,
+    /// [`Hierarchy::radiosity_at`]) that nothing stops (1 when none face, and weighted by the
+    /// kernel alone while the source is dark, before the first solve).
     ///
     /// The link gives every receiving member V times its unoccluded transfer, so the light
     /// it delivers in all is right when V is the share of that transfer that is not
@@ -622,7 +683,9 @@ impl Hierarchy<'_> {
     /// ray, and the pair is judged partly visible, which splits it where it matters.
     pub(super) fn cluster_visibility(&self, r: u32, s: u32, seed: u64) -> (f64, usize, u64) {
         let mut rng = SplitMix(seed);
-        let (sr, ss) = (self.strata(r), self.strata(s));
+        let by_light = is_cluster(s) && self.clusters.light(s) > 0.0;
+        let (sr, ss) = (self.strata(r, false), self.strata(s, by_light));
+        let sending = if by_light { Draw::Light } else { Draw::Area };
         // per pair of strata: the pairs drawn, those facing, and the light of the facing
         // ones, in all and unstopped (by kernel and source B, and by kernel alone for a
         // source whose B is still 0)
@@ -636,8 +699,10 @@ impl Hierarchy<'_> {
         let mut rays = 0u64;
         for k in 0..CLUSTER_RAYS {
             let (a, b) = (k % sr.len(), (k / sr.len()) % ss.len());
-            let (x, i, n) = self.sample(sr[a].0, true, &mut rng);
-            let (y, j, m) = self.sample(ss[b].0, false, &mut rng);
+            let recv = self.sample(sr[a].0, Draw::Receiving, &mut rng);
+            let send = self.sample(ss[b].0, sending, &mut rng);
+            let (x, i, n) = (recv.x, recv.surface, recv.normal);
+            let (y, j, m) = (send.x, send.surface, send.normal);
             drawn[a][b] += 1;
             let d = sub(y, x);
             let (cx, cy) = (dot(n, d), -dot(m, d));
@@ -648,7 +713,15 @@ impl Hierarchy<'_> {
             rays += 1;
             let r2 = dot(d, d);
             let kernel = cx * cy / (r2 * (r2 + disc));
-            let w = [kernel * self.mean_radiosity(j), kernel];
+            let (s_, t_) = send.at;
+            let mut here = self.radiosity_at(send.element, s_, t_);
+            if by_light {
+                // drawn in proportion to its patch's mean B: weighted by its part of it
+                let patch = &self.elements[send.element as usize];
+                let mean = patch.mean_of(&[patch.sent0()]);
+                here = if mean > 0.0 { here / mean } else { 0.0 };
+            }
+            let w = [kernel * here, kernel];
             let through = !self.geo.bvh.occluded(x, y, [i, j]);
             for (c, w) in w.into_iter().enumerate() {
                 light[c][a][b] += w;
@@ -680,11 +753,15 @@ impl Hierarchy<'_> {
 
     /// The strata of an end's points ([`Hierarchy::cluster_visibility`]): a cluster's two
     /// children with the areas of them that take part, or the end itself.
-    fn strata(&self, id: u32) -> smallvec::SmallVec<[(u32, f64); 2]> {
+    fn strata(&self, id: u32, by_light: bool) -> smallvec::SmallVec<[(u32, f64); 2]> {
         let mut out = smallvec::SmallVec::new();
         if is_cluster(id) {
             for c in self.clusters.get(id).children {
-                let w = self.clusters.weight(c);
+                let w = if by_light {
+                    self.clusters.light(c)
+                } else {
+                    self.clusters.weight(c)
+                };
                 if w > 0.0 {
                     out.push((c, w));
                 }

@@ -236,6 +236,7 @@ impl<'g> Hierarchy<'g> {
     /// face each other.
     fn link_all(&mut self, progress: &dyn Progress) -> Result<(), Cancelled> {
         self.cluster_state = self.measure_clusters();
+        self.weigh_light();
         let starts = &self.clusters.starts;
         let mut pairs = Vec::new();
         for &a in starts {
@@ -335,9 +336,10 @@ impl<'g> Hierarchy<'g> {
         self.hidden = hidden;
         // links with a cluster at an end, and hidden cluster pairs: judged again afresh
         self.cluster_state = self.measure_clusters();
+        self.weigh_light();
         let mut cluster_links = std::mem::take(&mut self.cluster_links);
         cluster_links.retain(|l| {
-            let open = self.cluster_outgrown(l.recv, l.src, l.smooth, l.sampled);
+            let open = l.unlit || self.cluster_outgrown(l.recv, l.src, l.smooth, l.sampled);
             if open {
                 again.push((l.recv, l.src));
                 reopened += 1;

@@ -353,20 +353,26 @@ impl Hierarchy<'_> {
     /// of a ray's end in a link's visible fraction ([`visible_share_of_light`]); at least a
     /// tiny positive number, so that a dark source still has a fraction.
     pub(super) fn light_at(&self, e: u32, s: f64, t: f64) -> f64 {
+        self.radiosity_at(e, s, t).max(f64::MIN_POSITIVE)
+    }
+
+    /// The radiosity (mean of the channels) at (s, t) of the surface of element `e`, as far
+    /// as the tree below `e` knows it ([`Hierarchy::light_at`], which keeps it positive).
+    pub(super) fn radiosity_at(&self, e: u32, s: f64, t: f64) -> f64 {
         let source = &self.elements[e as usize];
         let surface = source.piece.surface;
         if self.masks[surface]
             .as_ref()
             .is_some_and(|m| m.covered(s, t))
         {
-            return source.mean_of(&[source.sent0()]).max(f64::MIN_POSITIVE);
+            return source.mean_of(&[source.sent0()]);
         }
         let tri = self.geo.quads[surface].tri;
         let mut e = e;
         loop {
             let el = &self.elements[e as usize];
             if el.children == NONE {
-                return el.mean_of(&el.b).max(f64::MIN_POSITIVE);
+                return el.mean_of(&el.b);
             }
             e = if tri {
                 (el.children..el.children + 4)
@@ -676,6 +682,7 @@ impl Hierarchy<'_> {
                         affine: g.affine,
                         smooth: g.smooth,
                         sampled: g.sampled,
+                        unlit: g.unlit,
                     }),
                     ClusterVerdict::Hidden(smooth) => self.hidden_clusters.push((r, s, smooth)),
                     ClusterVerdict::Inert => {}

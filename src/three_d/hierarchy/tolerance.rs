@@ -249,12 +249,6 @@ impl Hierarchy<'_> {
         self.threshold * share.clamp(DIM_SHARE, 1.0)
     }
 
-    /// The mean over the channels of surface `i`'s mean B.
-    pub(super) fn mean_radiosity(&self, i: usize) -> f64 {
-        let root = &self.elements[i];
-        root.mean_of(&root.b)
-    }
-
     /// Per channel, the area-weighted mean B over the non-emitting surfaces (0 when there are
     /// none; only E before the first solve, which is 0 there).
     pub(super) fn typical_radiosity(&self) -> [f64; 3] {
