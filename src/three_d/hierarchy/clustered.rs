@@ -1478,6 +1478,63 @@ mod tests {
 
     /// Runs `check` on the hierarchy of a document whose two meshes (of two triangles each)
     /// make one cluster of four members, with that cluster.
+    /// A board over a plate 2 cm below it, both facing a light above (the doc of the test
+    /// above): each board triangle's ray to the light gets through and each plate triangle's
+    /// is stopped, and a partly visible link into the two gives the plate nothing and the
+    /// board what the link carries in all.
+    #[test]
+    fn each_member_takes_its_share_by_a_ray_of_its_own() {
+        let square = |y: f64, h: f64| {
+            serde_json::json!({"positions": [[-h, y, -h], [-h, y, h], [h, y, h], [h, y, -h]],
+                "triangles": [[0, 1, 2], [0, 2, 3]]})
+        };
+        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "board", "mesh": square(1.0, 0.5), "reflectance": 0.5},
+            {"name": "plate", "mesh": square(0.98, 0.025), "reflectance": 0.5},
+            {"name": "light", "corners": [[-0.25, 3, -0.25], [0.25, 3, -0.25], [0.25, 3, 0.25], [-0.25, 3, 0.25]],
+             "reflectance": 0.0, "emission": 1.0}]},
+            "solver": {"method": "hierarchical"}});
+        with_two_meshes(&doc, |h, both| {
+            let light = 4;
+            let mut order = Vec::new();
+            h.for_members(both, |p, _, _, _| order.push(p));
+            for seed in 0..10 {
+                let (open, rays) = h.member_visibility(both, light, seed);
+                assert_eq!(rays, 4);
+                for (&p, &n) in order.iter().zip(open.iter()) {
+                    // patches 0 and 1 are the board's, 2 and 3 the plate's
+                    assert_eq!(n, u8::from(p < 2), "seed {seed}: patch {p}");
+                }
+            }
+            let (emitters, b0) = (h.emitters(), h.member_b());
+            let mut link = ClusterLink {
+                recv: both,
+                src: light,
+                visibility: 0.8,
+                affine: true,
+                smooth: 1.0,
+                sampled: 0.0,
+                unlit: false,
+                members: None,
+            };
+            let mut shared = vec![[0.0; 3]; 4];
+            h.cluster_link_irradiance(&link, &emitters, &b0, &mut shared);
+            link.members = Some(h.member_visibility(both, light, 1).0);
+            let mut own = vec![[0.0; 3]; 4];
+            h.cluster_link_irradiance(&link, &emitters, &b0, &mut own);
+            let total = |x: &[Rgb]| x.iter().map(|h| h[0]).sum::<f64>();
+            assert!(total(&shared) > 0.0);
+            assert!((total(&own) / total(&shared) - 1.0).abs() < 1e-12);
+            for (&p, (a, b)) in order.iter().zip(own.iter().zip(&shared)) {
+                if p < 2 {
+                    assert!(a[0] > b[0], "patch {p}: {} against {}", a[0], b[0]);
+                } else {
+                    assert_eq!(a[0], 0.0, "patch {p}");
+                }
+            }
+        });
+    }
+
     fn with_two_meshes(doc: &serde_json::Value, check: impl FnOnce(&Hierarchy, u32)) {
         let quads = super::super::tests::patches(doc);
         let geo = crate::three_d::projection::Geometry::new(&quads);
