@@ -44,6 +44,15 @@ use crate::three_d::geometry::{
 use crate::three_d::visibility::{pair_seed, unseen_bound, SplitMix};
 use rayon::prelude::*;
 
+/// A member's 1 or 0, or for [`NO_SAMPLE`] the link's V.
+fn share(open: u8, v: f64) -> f64 {
+    if open == NO_SAMPLE {
+        v
+    } else {
+        f64::from(open)
+    }
+}
+
 /// What [`Hierarchy::member_visibility`] finds for a member whose ray's end lies behind it:
 /// no sample, the link's own V.
 const NO_SAMPLE: u8 = u8::MAX;
@@ -90,10 +99,9 @@ pub(super) struct ClusterLink {
     /// by area rather than by the light it sends ([`Hierarchy::cluster_visibility`]): judged
     /// again after the first solve.
     pub(super) unlit: bool,
-    /// Partly visible into a cluster: whether a ray from each receiving member (in the order
-    /// of [`Hierarchy::for_members`]) to the source got through, 1 or 0, or [`NO_SAMPLE`]
+    /// Partly visible into a cluster: each receiving member's own visible fraction
     /// ([`Hierarchy::member_visibility`]).
-    pub(super) members: Option<Box<[u8]>>,
+    pub(super) members: Option<Members>,
 }
 
 /// What a source sends through its cluster links, per channel, summed over its members j
@@ -266,7 +274,19 @@ pub(super) struct ClusterLinkGeometry {
     pub(super) smooth: f64,
     pub(super) sampled: f64,
     pub(super) unlit: bool,
-    pub(super) members: Option<Box<[u8]>>,
+    pub(super) members: Option<Members>,
+}
+
+/// Each receiving member's own visible fraction of a partly visible link into a cluster
+/// ([`Hierarchy::member_visibility`]).
+#[derive(Debug, Clone)]
+pub(super) struct Members {
+    /// Whether a ray from each member (in the order of [`Hierarchy::for_members`]) to the
+    /// source got through, 1 or 0, or [`NO_SAMPLE`].
+    open: Box<[u8]>,
+    /// What a member's 1 stands for: V Σ a / Σ a s over the members, a a member's geometric
+    /// weight toward the source and s its 1, 0 or V, so that the link delivers V in all.
+    scale: f64,
 }
 
 /// How [`Hierarchy::sample`] draws a point of an end: by area on a receiving end (again
@@ -567,8 +587,8 @@ impl Hierarchy<'_> {
         // known ([`ClusterLink::unlit`])
         let unlit = self.typical.iter().all(|&b| b <= 0.0);
         let (members, rays) = if v < 1.0 && is_cluster(r) {
-            let (m, more) = self.member_visibility(r, s, seed ^ 3);
-            (Some(m), rays + more)
+            let (m, more) = self.member_visibility(r, s, v, seed ^ 3);
+            (m, rays + more)
         } else {
             (None, rays)
         };
@@ -781,7 +801,7 @@ impl Hierarchy<'_> {
     /// wall 65 % bright); splitting every such pair down to the members took the 81 spheres
     /// from 1.09 M links to 4.3 M. With a few rays of its own, a member's error is a sampling
     /// error, of either sign from one source to the next.
-    fn member_visibility(&self, r: u32, s: u32, seed: u64) -> (Box<[u8]>, u64) {
+    fn member_visibility(&self, r: u32, s: u32, v: f64, seed: u64) -> (Option<Members>, u64) {
         let draw = if is_cluster(s) && self.clusters.light(s) > 0.0 {
             Draw::Light
         } else {
@@ -790,17 +810,42 @@ impl Hierarchy<'_> {
         let mut rng = SplitMix(seed);
         let mut out = Vec::with_capacity(self.member_count(r));
         let mut rays = 0u64;
-        self.for_members(r, |p, _, x, n| {
+        let centre = self.centre_of(s);
+        let (mut all, mut seen) = (0.0, 0.0);
+        self.for_members(r, |p, area, x, n| {
             let y = self.sample(s, draw, &mut rng);
             let d = sub(y.x, x);
-            out.push(if dot(n, d) <= 0.0 || dot(y.normal, d) >= 0.0 {
+            let open = if dot(n, d) <= 0.0 || dot(y.normal, d) >= 0.0 {
                 NO_SAMPLE
             } else {
                 rays += 1;
                 u8::from(!self.geo.bvh.occluded(x, y.x, [p as usize, y.surface]))
-            });
+            };
+            // the member's weight toward the source's centre: its area, cosine and 1/r²
+            let c = sub(centre, x);
+            let r2 = dot(c, c);
+            let a = if r2 > 0.0 {
+                area * dot(n, c).max(0.0) / (r2 * r2.sqrt())
+            } else {
+                0.0
+            };
+            all += a;
+            seen += a * share(open, v);
+            out.push(open);
         });
-        (out.into_boxed_slice(), rays)
+        let members = (seen > 0.0).then(|| Members {
+            open: out.into_boxed_slice(),
+            scale: v * all / seen,
+        });
+        (members, rays)
+    }
+
+    /// The visible fraction that link `l` gives the `k`-th member of its receiver.
+    fn member_v(&self, l: &ClusterLink, k: usize) -> f64 {
+        match &l.members {
+            Some(m) => share(m.open[k], l.visibility) * m.scale,
+            None => l.visibility,
+        }
     }
 
     /// The strata of an end's points ([`Hierarchy::cluster_visibility`]): a cluster's two
@@ -835,27 +880,11 @@ impl Hierarchy<'_> {
         out: &mut [Rgb],
     ) {
         self.unoccluded_irradiance(l, emitters, b0, out);
-        // each member's share by its own rays ([`Hierarchy::member_visibility`]), the link's
-        // light in all kept
-        if let Some(open) = &l.members {
-            let share = |n: u8| {
-                if n == NO_SAMPLE {
-                    l.visibility
-                } else {
-                    f64::from(n)
-                }
-            };
-            let (mut all, mut seen) = (0.0, 0.0);
-            for (h, &n) in out.iter().zip(open.iter()) {
-                let w = h[0] + h[1] + h[2];
-                all += w;
-                seen += w * share(n);
-            }
-            if seen > 0.0 {
-                let f = all / seen;
-                for (h, &n) in out.iter_mut().zip(open.iter()) {
-                    *h = h.map(|c| c * share(n) * f);
-                }
+        // each member's own visible fraction ([`Hierarchy::member_visibility`])
+        if l.members.is_some() {
+            for (k, h) in out.iter_mut().enumerate() {
+                let f = self.member_v(l, k) / l.visibility;
+                *h = h.map(|c| c * f);
             }
         }
     }
@@ -949,6 +978,11 @@ impl Hierarchy<'_> {
             }
         };
         let (x, nx) = member(l.recv, i);
+        let v = if is_cluster(l.recv) {
+            self.member_v(l, self.clusters.index_in(l.recv, i as usize))
+        } else {
+            l.visibility
+        };
         if l.affine {
             let (sc, sr) = self.end(l.src).bound.sphere();
             if dot(nx, sub(sc, x)) < -sr {
@@ -958,7 +992,7 @@ impl Hierarchy<'_> {
             let q = &self.geo.quads[el.piece.surface];
             let cov = covariance(&el.piece.corners(&self.geo.quads), q.tri);
             let alone = Emitter::member(el.area, [1.0; 3], self.element_centre(j), q.n, cov);
-            return l.visibility * alone.irradiance(x, nx)[0] / el.area;
+            return v * alone.irradiance(x, nx)[0] / el.area;
         }
         let centre = self.centre_of(l.src);
         let toward = sub(self.centre_of(l.recv), centre);
@@ -969,7 +1003,7 @@ impl Hierarchy<'_> {
         if cy <= 0.0 || cx <= 0.0 || r2 <= 0.0 {
             return 0.0;
         }
-        l.visibility * cx * cy / (std::f64::consts::PI * r2 * r2.sqrt())
+        v * cx * cy / (std::f64::consts::PI * r2 * r2.sqrt())
     }
 
     /// How many members receive through a link into `id`.
@@ -1499,9 +1533,10 @@ mod tests {
             let mut order = Vec::new();
             h.for_members(both, |p, _, _, _| order.push(p));
             for seed in 0..10 {
-                let (open, rays) = h.member_visibility(both, light, seed);
+                let (members, rays) = h.member_visibility(both, light, 0.8, seed);
                 assert_eq!(rays, 4);
-                for (&p, &n) in order.iter().zip(open.iter()) {
+                let m = members.expect("the board's members see the light");
+                for (&p, &n) in order.iter().zip(m.open.iter()) {
                     // patches 0 and 1 are the board's, 2 and 3 the plate's
                     assert_eq!(n, u8::from(p < 2), "seed {seed}: patch {p}");
                 }
@@ -1519,12 +1554,19 @@ mod tests {
             };
             let mut shared = vec![[0.0; 3]; 4];
             h.cluster_link_irradiance(&link, &emitters, &b0, &mut shared);
-            link.members = Some(h.member_visibility(both, light, 1).0);
+            link.members = h.member_visibility(both, light, 0.8, 1).0;
             let mut own = vec![[0.0; 3]; 4];
             h.cluster_link_irradiance(&link, &emitters, &b0, &mut own);
             let total = |x: &[Rgb]| x.iter().map(|h| h[0]).sum::<f64>();
             assert!(total(&shared) > 0.0);
-            assert!((total(&own) / total(&shared) - 1.0).abs() < 1e-12);
+            // the same light in all, to the geometric weights' approximation of the transfer
+            // (the board's two triangles receive alike, the plate's little)
+            assert!(
+                (total(&own) / total(&shared) - 1.0).abs() < 0.05,
+                "{} against {}",
+                total(&own),
+                total(&shared)
+            );
             for (&p, (a, b)) in order.iter().zip(own.iter().zip(&shared)) {
                 if p < 2 {
                     assert!(a[0] > b[0], "patch {p}: {} against {}", a[0], b[0]);
