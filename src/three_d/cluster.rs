@@ -556,11 +556,6 @@ impl Clusters {
         self.light[b] - self.light[a]
     }
 
-    /// The place of `patch` among the members of cluster `reference`.
-    pub(super) fn index_in(&self, reference: u32, patch: usize) -> usize {
-        self.position[patch] as usize - self.run(reference).0
-    }
-
     /// The run of `order` that cluster `reference`, or the patch `reference` names, holds.
     fn run(&self, reference: u32) -> (usize, usize) {
         if is_cluster(reference) {

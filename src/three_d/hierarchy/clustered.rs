@@ -44,19 +44,6 @@ use crate::three_d::geometry::{
 use crate::three_d::visibility::{pair_seed, unseen_bound, SplitMix};
 use rayon::prelude::*;
 
-/// A member's 1 or 0, or for [`NO_SAMPLE`] the link's V.
-fn share(open: u8, v: f64) -> f64 {
-    if open == NO_SAMPLE {
-        v
-    } else {
-        f64::from(open)
-    }
-}
-
-/// What [`Hierarchy::member_visibility`] finds for a member whose ray's end lies behind it:
-/// no sample, the link's own V.
-const NO_SAMPLE: u8 = u8::MAX;
-
 /// The receiving members whose irradiance one run of cluster links computes in parallel
 /// before adding it to their H ([`Hierarchy::gather_clusters`]): 24 MB of buffer.
 const RUN_MEMBERS: usize = 1 << 20;
@@ -99,9 +86,6 @@ pub(super) struct ClusterLink {
     /// by area rather than by the light it sends ([`Hierarchy::cluster_visibility`]): judged
     /// again after the first solve.
     pub(super) unlit: bool,
-    /// Partly visible into a cluster: each receiving member's own visible fraction
-    /// ([`Hierarchy::member_visibility`]).
-    pub(super) members: Option<Members>,
 }
 
 /// What a source sends through its cluster links, per channel, summed over its members j
@@ -254,7 +238,7 @@ pub(super) struct State {
 }
 
 /// What the oracle makes of a pair with a cluster at an end.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Copy)]
 pub(super) enum ClusterVerdict {
     /// Split the receiver, the source, or (a cluster with itself) both.
     Receiver,
@@ -267,26 +251,13 @@ pub(super) enum ClusterVerdict {
     Inert,
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Copy)]
 pub(super) struct ClusterLinkGeometry {
     pub(super) visibility: f64,
     pub(super) affine: bool,
     pub(super) smooth: f64,
     pub(super) sampled: f64,
     pub(super) unlit: bool,
-    pub(super) members: Option<Members>,
-}
-
-/// Each receiving member's own visible fraction of a partly visible link into a cluster
-/// ([`Hierarchy::member_visibility`]).
-#[derive(Debug, Clone)]
-pub(super) struct Members {
-    /// Whether a ray from each member (in the order of [`Hierarchy::for_members`]) to the
-    /// source got through, 1 or 0, or [`NO_SAMPLE`].
-    open: Box<[u8]>,
-    /// What a member's 1 stands for: V Σ a / Σ a s over the members, a a member's geometric
-    /// weight toward the source and s its 1, 0 or V, so that the link delivers V in all.
-    scale: f64,
 }
 
 /// How [`Hierarchy::sample`] draws a point of an end: by area on a receiving end (again
@@ -586,12 +557,6 @@ impl Hierarchy<'_> {
         // with the kernel alone where it emits none: the link is judged again once B is
         // known ([`ClusterLink::unlit`])
         let unlit = self.typical.iter().all(|&b| b <= 0.0);
-        let (members, rays) = if v < 1.0 && is_cluster(r) {
-            let (m, more) = self.member_visibility(r, s, v, seed ^ 3);
-            (m, rays + more)
-        } else {
-            (None, rays)
-        };
         (
             ClusterVerdict::Link(ClusterLinkGeometry {
                 visibility: v,
@@ -599,7 +564,6 @@ impl Hierarchy<'_> {
                 smooth,
                 sampled,
                 unlit,
-                members,
             }),
             rays,
         )
@@ -787,67 +751,6 @@ impl Hierarchy<'_> {
         }
     }
 
-    /// For a partly visible pair into cluster `r`: whether a ray from each member's centroid to
-    /// a point of the source `s` (drawn as [`Hierarchy::cluster_visibility`] draws them) gets
-    /// through: 1 or 0, or [`NO_SAMPLE`] where the point lies behind the member (no ray; a
-    /// member that faces away from the whole source receives nothing anyway). Returns the
-    /// rays cast.
-    ///
-    /// The link's V is the share of its light that arrives, right for the cluster as a whole,
-    /// but each member would get V times its own unoccluded transfer: those the occluders hide
-    /// would gather too much and those in view too little, with one sign from every source,
-    /// and what a member in a nook gathers too much it sends into the nook. In the furnished
-    /// room this left the walls 1–2 % dark (the sofa's seat 4.3 % dark, its back against the
-    /// wall 65 % bright); splitting every such pair down to the members took the 81 spheres
-    /// from 1.09 M links to 4.3 M. With a few rays of its own, a member's error is a sampling
-    /// error, of either sign from one source to the next.
-    fn member_visibility(&self, r: u32, s: u32, v: f64, seed: u64) -> (Option<Members>, u64) {
-        let draw = if is_cluster(s) && self.clusters.light(s) > 0.0 {
-            Draw::Light
-        } else {
-            Draw::Area
-        };
-        let mut rng = SplitMix(seed);
-        let mut out = Vec::with_capacity(self.member_count(r));
-        let mut rays = 0u64;
-        let centre = self.centre_of(s);
-        let (mut all, mut seen) = (0.0, 0.0);
-        self.for_members(r, |p, area, x, n| {
-            let y = self.sample(s, draw, &mut rng);
-            let d = sub(y.x, x);
-            let open = if dot(n, d) <= 0.0 || dot(y.normal, d) >= 0.0 {
-                NO_SAMPLE
-            } else {
-                rays += 1;
-                u8::from(!self.geo.bvh.occluded(x, y.x, [p as usize, y.surface]))
-            };
-            // the member's weight toward the source's centre: its area, cosine and 1/r²
-            let c = sub(centre, x);
-            let r2 = dot(c, c);
-            let a = if r2 > 0.0 {
-                area * dot(n, c).max(0.0) / (r2 * r2.sqrt())
-            } else {
-                0.0
-            };
-            all += a;
-            seen += a * share(open, v);
-            out.push(open);
-        });
-        let members = (seen > 0.0).then(|| Members {
-            open: out.into_boxed_slice(),
-            scale: v * all / seen,
-        });
-        (members, rays)
-    }
-
-    /// The visible fraction that link `l` gives the `k`-th member of its receiver.
-    fn member_v(&self, l: &ClusterLink, k: usize) -> f64 {
-        match &l.members {
-            Some(m) => share(m.open[k], l.visibility) * m.scale,
-            None => l.visibility,
-        }
-    }
-
     /// The strata of an end's points ([`Hierarchy::cluster_visibility`]): a cluster's two
     /// children with the areas of them that take part, or the end itself.
     fn strata(&self, id: u32, by_light: bool) -> smallvec::SmallVec<[(u32, f64); 2]> {
@@ -873,25 +776,6 @@ impl Hierarchy<'_> {
     /// The constant H (as h₀ = H √A) that cluster link `l` delivers to each member of its
     /// receiver, each at its own centroid, into `out` (one slot per member, in their order).
     fn cluster_link_irradiance(
-        &self,
-        l: &ClusterLink,
-        emitters: &[Emitter],
-        b0: &[Rgb],
-        out: &mut [Rgb],
-    ) {
-        self.unoccluded_irradiance(l, emitters, b0, out);
-        // each member's own visible fraction ([`Hierarchy::member_visibility`])
-        if l.members.is_some() {
-            for (k, h) in out.iter_mut().enumerate() {
-                let f = self.member_v(l, k) / l.visibility;
-                *h = h.map(|c| c * f);
-            }
-        }
-    }
-
-    /// The constant H (as h₀ = H √A) that cluster link `l` delivers to each member of its
-    /// receiver with the link's V, each at its own centroid, into `out`.
-    fn unoccluded_irradiance(
         &self,
         l: &ClusterLink,
         emitters: &[Emitter],
@@ -978,11 +862,6 @@ impl Hierarchy<'_> {
             }
         };
         let (x, nx) = member(l.recv, i);
-        let v = if is_cluster(l.recv) {
-            self.member_v(l, self.clusters.index_in(l.recv, i as usize))
-        } else {
-            l.visibility
-        };
         if l.affine {
             let (sc, sr) = self.end(l.src).bound.sphere();
             if dot(nx, sub(sc, x)) < -sr {
@@ -992,7 +871,7 @@ impl Hierarchy<'_> {
             let q = &self.geo.quads[el.piece.surface];
             let cov = covariance(&el.piece.corners(&self.geo.quads), q.tri);
             let alone = Emitter::member(el.area, [1.0; 3], self.element_centre(j), q.n, cov);
-            return v * alone.irradiance(x, nx)[0] / el.area;
+            return l.visibility * alone.irradiance(x, nx)[0] / el.area;
         }
         let centre = self.centre_of(l.src);
         let toward = sub(self.centre_of(l.recv), centre);
@@ -1003,7 +882,7 @@ impl Hierarchy<'_> {
         if cy <= 0.0 || cx <= 0.0 || r2 <= 0.0 {
             return 0.0;
         }
-        v * cx * cy / (std::f64::consts::PI * r2 * r2.sqrt())
+        l.visibility * cx * cy / (std::f64::consts::PI * r2 * r2.sqrt())
     }
 
     /// How many members receive through a link into `id`.
@@ -1512,71 +1391,6 @@ mod tests {
 
     /// Runs `check` on the hierarchy of a document whose two meshes (of two triangles each)
     /// make one cluster of four members, with that cluster.
-    /// A board over a plate 2 cm below it, both facing a light above (the doc of the test
-    /// above): each board triangle's ray to the light gets through and each plate triangle's
-    /// is stopped, and a partly visible link into the two gives the plate nothing and the
-    /// board what the link carries in all.
-    #[test]
-    fn each_member_takes_its_share_by_a_ray_of_its_own() {
-        let square = |y: f64, h: f64| {
-            serde_json::json!({"positions": [[-h, y, -h], [-h, y, h], [h, y, h], [h, y, -h]],
-                "triangles": [[0, 1, 2], [0, 2, 3]]})
-        };
-        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
-            {"name": "board", "mesh": square(1.0, 0.5), "reflectance": 0.5},
-            {"name": "plate", "mesh": square(0.98, 0.025), "reflectance": 0.5},
-            {"name": "light", "corners": [[-0.25, 3, -0.25], [0.25, 3, -0.25], [0.25, 3, 0.25], [-0.25, 3, 0.25]],
-             "reflectance": 0.0, "emission": 1.0}]},
-            "solver": {"method": "hierarchical"}});
-        with_two_meshes(&doc, |h, both| {
-            let light = 4;
-            let mut order = Vec::new();
-            h.for_members(both, |p, _, _, _| order.push(p));
-            for seed in 0..10 {
-                let (members, rays) = h.member_visibility(both, light, 0.8, seed);
-                assert_eq!(rays, 4);
-                let m = members.expect("the board's members see the light");
-                for (&p, &n) in order.iter().zip(m.open.iter()) {
-                    // patches 0 and 1 are the board's, 2 and 3 the plate's
-                    assert_eq!(n, u8::from(p < 2), "seed {seed}: patch {p}");
-                }
-            }
-            let (emitters, b0) = (h.emitters(), h.member_b());
-            let mut link = ClusterLink {
-                recv: both,
-                src: light,
-                visibility: 0.8,
-                affine: true,
-                smooth: 1.0,
-                sampled: 0.0,
-                unlit: false,
-                members: None,
-            };
-            let mut shared = vec![[0.0; 3]; 4];
-            h.cluster_link_irradiance(&link, &emitters, &b0, &mut shared);
-            link.members = h.member_visibility(both, light, 0.8, 1).0;
-            let mut own = vec![[0.0; 3]; 4];
-            h.cluster_link_irradiance(&link, &emitters, &b0, &mut own);
-            let total = |x: &[Rgb]| x.iter().map(|h| h[0]).sum::<f64>();
-            assert!(total(&shared) > 0.0);
-            // the same light in all, to the geometric weights' approximation of the transfer
-            // (the board's two triangles receive alike, the plate's little)
-            assert!(
-                (total(&own) / total(&shared) - 1.0).abs() < 0.05,
-                "{} against {}",
-                total(&own),
-                total(&shared)
-            );
-            for (&p, (a, b)) in order.iter().zip(own.iter().zip(&shared)) {
-                if p < 2 {
-                    assert!(a[0] > b[0], "patch {p}: {} against {}", a[0], b[0]);
-                } else {
-                    assert_eq!(a[0], 0.0, "patch {p}");
-                }
-            }
-        });
-    }
-
     fn with_two_meshes(doc: &serde_json::Value, check: impl FnOnce(&Hierarchy, u32)) {
         let quads = super::super::tests::patches(doc);
         let geo = crate::three_d::projection::Geometry::new(&quads);

@@ -683,7 +683,6 @@ impl Hierarchy<'_> {
                         smooth: g.smooth,
                         sampled: g.sampled,
                         unlit: g.unlit,
-                        members: g.members,
                     }),
                     ClusterVerdict::Hidden(smooth) => self.hidden_clusters.push((r, s, smooth)),
                     ClusterVerdict::Inert => {}
