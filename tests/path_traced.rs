@@ -538,7 +538,7 @@ fn a_rug_just_above_a_meshed_floor_darkens_only_the_floor_under_it() {
 /// walls as meshes, the links between them have clusters at their ends, and each carries one
 /// visible fraction. Drawn by area, a source's points seldom fell on its bright patch: the
 /// rays saw the light's back as a small occluder, and the far wall came out 24 % bright at the
-/// defaults (still 13 % at ε = 2.5e-4). Drawn by the light the members send, they see it hide
+/// defaults (still 11 % beyond the noise at ε = 2.5e-4). Drawn by the light the members send, they see it hide
 /// the brightest part. The requirement is the gallery's, 1 % beyond four standard errors.
 #[test]
 fn a_light_hides_the_bright_patch_behind_it_from_the_far_wall() {

@@ -781,12 +781,7 @@ mod tests {
     /// members.
     #[test]
     fn a_covered_patch_is_never_picked_and_a_cluster_of_them_takes_no_part() {
-        let quads: Vec<Parallelogram> = (0..16)
-            .map(|k| {
-                let x = k as f64;
-                tri([x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 0.0, -1.0])
-            })
-            .collect();
+        let quads = strip_of_triangles();
         let mut tree = Clusters::new(&quads, &[(0..16).collect()]);
         // the patches 0..8 covered
         tree.weigh(&quads, |p| f64::from(p >= 8));
@@ -810,16 +805,21 @@ mod tests {
         assert!((0..tree.nodes.len()).any(|i| !tree.takes_part(CLUSTER | i as u32)));
     }
 
-    /// Picked by light, a member comes up in proportion to its weighed area times its B:
-    /// never where either is 0, and a cluster's light is the sum of its members'.
-    #[test]
-    fn members_are_picked_by_the_light_they_send() {
-        let quads: Vec<Parallelogram> = (0..16)
+    /// Sixteen triangles of area ½ side by side in one plane, facing up.
+    fn strip_of_triangles() -> Vec<Parallelogram> {
+        (0..16)
             .map(|k| {
                 let x = k as f64;
                 tri([x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 0.0, -1.0])
             })
-            .collect();
+            .collect()
+    }
+
+    /// Picked by light, a member comes up in proportion to its weighed area times its B:
+    /// never where either is 0, and a cluster's light is the sum of its members'.
+    #[test]
+    fn members_are_picked_by_the_light_they_send() {
+        let quads = strip_of_triangles();
         let mut tree = Clusters::new(&quads, &[(0..16).collect()]);
         let root = tree.starts[0];
         assert_eq!(tree.light(root), 0.0, "no light before it is weighed");

@@ -82,10 +82,6 @@ pub(super) struct ClusterLink {
     /// The part of `smooth` that is the sampling error of `visibility` (see
     /// [`Hierarchy::split_lowers`]).
     pub(super) sampled: f64,
-    /// Judged before B was known, when the points of a source that emits nothing were drawn
-    /// by area rather than by the light it sends ([`Hierarchy::cluster_visibility`]): judged
-    /// again after the first solve.
-    pub(super) unlit: bool,
 }
 
 /// What a source sends through its cluster links, per channel, summed over its members j
@@ -257,7 +253,6 @@ pub(super) struct ClusterLinkGeometry {
     pub(super) affine: bool,
     pub(super) smooth: f64,
     pub(super) sampled: f64,
-    pub(super) unlit: bool,
 }
 
 /// How [`Hierarchy::sample`] draws a point of an end: by area on a receiving end (again
@@ -555,15 +550,13 @@ impl Hierarchy<'_> {
         }
         // before B is known a source's points are drawn by the light it emits, or by area
         // with the kernel alone where it emits none: the link is judged again once B is
-        // known ([`ClusterLink::unlit`])
-        let unlit = self.typical.iter().all(|&b| b <= 0.0);
+        // known (`Hierarchy::rerefine`)
         (
             ClusterVerdict::Link(ClusterLinkGeometry {
                 visibility: v,
                 affine,
                 smooth,
                 sampled,
-                unlit,
             }),
             rays,
         )

@@ -308,6 +308,10 @@ impl<'g> Hierarchy<'g> {
 
     /// Re-evaluates every link with the current B; returns how many were refined.
     fn rerefine(&mut self, progress: &dyn Progress) -> Result<usize, Cancelled> {
+        // the cluster links were judged before B was known, their sources' points drawn by
+        // area where they emit nothing rather than by the light they send
+        // ([`Hierarchy::cluster_visibility`]): every one is judged again
+        let unlit = self.typical.iter().all(|&b| b <= 0.0);
         self.typical = self.typical_radiosity();
         for root in 0..self.quads.len() {
             self.measure_detail(root as u32);
@@ -339,7 +343,7 @@ impl<'g> Hierarchy<'g> {
         self.weigh_light();
         let mut cluster_links = std::mem::take(&mut self.cluster_links);
         cluster_links.retain(|l| {
-            let open = l.unlit || self.cluster_outgrown(l.recv, l.src, l.smooth, l.sampled);
+            let open = unlit || self.cluster_outgrown(l.recv, l.src, l.smooth, l.sampled);
             if open {
                 again.push((l.recv, l.src));
                 reopened += 1;

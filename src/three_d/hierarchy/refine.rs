@@ -682,7 +682,6 @@ impl Hierarchy<'_> {
                         affine: g.affine,
                         smooth: g.smooth,
                         sampled: g.sampled,
-                        unlit: g.unlit,
                     }),
                     ClusterVerdict::Hidden(smooth) => self.hidden_clusters.push((r, s, smooth)),
                     ClusterVerdict::Inert => {}
