@@ -608,6 +608,11 @@ impl Clusters {
         a as usize..b as usize
     }
 
+    /// Where patch `patch` lies in [`Clusters::order`].
+    pub(super) fn place(&self, patch: u32) -> usize {
+        self.position[patch as usize] as usize
+    }
+
     /// Every patch under a tree, each cluster's members one run of it.
     pub(super) fn order(&self) -> &[u32] {
         &self.order

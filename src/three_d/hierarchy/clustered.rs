@@ -26,6 +26,13 @@
 //! hidden) carries V from n fresh rays, not from those that judged it, as the element pairs
 //! do ([`super::refine`]): with the judging rays, a mesh window behind thin bars lit the
 //! room's walls 1.2–3.3 % bright.
+//! A link into a cluster whose judging rays were not all through gives each receiving member
+//! its own V, from a ray of its own ([`Hierarchy::member_visibility`]); the link's one V made
+//! the members that occluders hide gather light they cannot see, with one sign from every
+//! source. The members' rays are cast where the judging rays, not the fresh ones, saw a
+//! blocked ray: the links that keep the one V then carry it from rays that did not choose
+//! them (chosen by both sets, the links left with V = 1 were those whose fresh rays all got
+//! through, and a wall behind a window's thin bars came out 1.35 % bright).
 //! The tolerances are those of the element links' oracle, and w_R is the weight of the
 //! receiver's largest source ([`super::tolerance`]: a cluster may hold many surfaces, whose
 //! shares add up; with w_R = 1 the Cornell box made of meshes came out 1 % dark on its
@@ -50,6 +57,10 @@ const RUN_MEMBERS: usize = 1 << 20;
 
 /// Rays between two clusters for their visible fraction.
 const CLUSTER_RAYS: usize = 16;
+
+/// Rays from each receiving member of a partly visible link into a cluster for the member's
+/// own visible fraction ([`Hierarchy::member_visibility`]).
+const MEMBER_RAYS: usize = 1;
 
 /// Draws of a receiving point before one on a covered part is taken after all
 /// ([`Hierarchy::sample`]): an end with an exposed share f keeps a covered point with
@@ -82,6 +93,20 @@ pub(super) struct ClusterLink {
     /// The part of `smooth` that is the sampling error of `visibility` (see
     /// [`Hierarchy::split_lowers`]).
     pub(super) sampled: f64,
+    /// Each receiving member's own visible fraction, in 1/255ths, in the clusters' order
+    /// ([`Hierarchy::member_visibility`]): a partly visible link into a cluster.
+    pub(super) members: Option<Box<[u8]>>,
+}
+
+impl ClusterLink {
+    /// The visible fraction of the `k`-th receiving member (in the clusters' order): its
+    /// own where the link keeps one, else the link's.
+    fn member_v(&self, k: usize) -> f64 {
+        match &self.members {
+            Some(m) => f64::from(m[k]) / 255.0,
+            None => self.visibility,
+        }
+    }
 }
 
 /// What a source sends through its cluster links, per channel, summed over its members j
@@ -234,7 +259,7 @@ pub(super) struct State {
 }
 
 /// What the oracle makes of a pair with a cluster at an end.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub(super) enum ClusterVerdict {
     /// Split the receiver, the source, or (a cluster with itself) both.
     Receiver,
@@ -247,12 +272,13 @@ pub(super) enum ClusterVerdict {
     Inert,
 }
 
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub(super) struct ClusterLinkGeometry {
     pub(super) visibility: f64,
     pub(super) affine: bool,
     pub(super) smooth: f64,
     pub(super) sampled: f64,
+    pub(super) members: Option<Box<[u8]>>,
 }
 
 /// How [`Hierarchy::sample`] draws a point of an end: by area on a receiving end (again
@@ -543,11 +569,22 @@ impl Hierarchy<'_> {
         // the link, or its absence, carries V from rays that did not judge it (see the
         // element links' oracle, [`super::refine`]: the judging rays' V errs with one sign
         // over the pairs that were not split)
+        let judged = v;
         let (v, _, more) = self.cluster_visibility(r, s, seed ^ 2);
-        let rays = rays + more;
+        let mut rays = rays + more;
         if v <= 0.0 {
             return (ClusterVerdict::Hidden(smooth), rays);
         }
+        // before B is known every cluster link is judged again after the first solve
+        // (`Hierarchy::rerefine`): its members' rays would be cast twice
+        let lit = self.typical.iter().any(|&b| b > 0.0);
+        let members = if lit && is_cluster(r) && judged < 1.0 {
+            let (m, more) = self.member_visibility(r, s, seed ^ 3);
+            rays += more;
+            Some(m)
+        } else {
+            None
+        };
         // before B is known a source's points are drawn by the light it emits, or by area
         // with the kernel alone where it emits none: the link is judged again once B is
         // known (`Hierarchy::rerefine`)
@@ -557,6 +594,7 @@ impl Hierarchy<'_> {
                 affine,
                 smooth,
                 sampled,
+                members,
             }),
             rays,
         )
@@ -744,6 +782,80 @@ impl Hierarchy<'_> {
         }
     }
 
+    /// Each receiving member's own visible fraction from source `s`, in 1/255ths, in the
+    /// clusters' order: of [`MEMBER_RAYS`] rays from uniform points of the member (not on a
+    /// covered part) to points of the source drawn as the link's are, the kernel-weighted
+    /// share that nothing stops (1 where none faces: the member then gathers next to nothing
+    /// from the source). Returns the rays cast.
+    ///
+    /// The link's one V is right in all but not per member: the members that occluders hide
+    /// gather V times their unoccluded transfer where they should gather none, and those in
+    /// view too little, with one sign from every source. A member's own rays are an estimate
+    /// of its own V whose error changes sign from link to link and averages out over a
+    /// member's many links.
+    pub(super) fn member_visibility(&self, r: u32, s: u32, seed: u64) -> (Box<[u8]>, u64) {
+        let mut rng = SplitMix(seed);
+        let by_light = is_cluster(s) && self.clusters.light(s) > 0.0;
+        let sending = if by_light { Draw::Light } else { Draw::Area };
+        let source_area = self.end_area(s);
+        let span = self.clusters.span(r);
+        let (sc, sr) = self.end(s).bound.sphere();
+        let mut rays = 0u64;
+        let out = self.clusters.order()[span.clone()]
+            .iter()
+            .zip(&self.members[span])
+            .map(|(&p, m)| {
+                // a member whose plane leaves the source behind it receives nothing from it
+                if dot(m.normal, sub(sc, m.centre)) < -sr {
+                    return 255;
+                }
+                let (mut light, mut open) = (0.0, 0.0);
+                let disc = self.elements[p as usize].area.min(source_area) / std::f64::consts::PI;
+                for _ in 0..MEMBER_RAYS {
+                    let recv = self.sample(p, Draw::Receiving, &mut rng);
+                    let mut facing = None;
+                    for _ in 0..COVERED_DRAWS {
+                        let send = self.sample(s, sending, &mut rng);
+                        let d = sub(send.x, recv.x);
+                        let (cx, cy) = (dot(recv.normal, d), -dot(send.normal, d));
+                        if cx > 0.0 && cy > 0.0 {
+                            let r2 = dot(d, d);
+                            facing = Some((send, cx * cy / (r2 * (r2 + disc))));
+                            break;
+                        }
+                    }
+                    let Some((send, kernel)) = facing else {
+                        continue;
+                    };
+                    let w = if by_light {
+                        let (s_, t_) = send.at;
+                        let here = self.radiosity_at(send.element, s_, t_);
+                        let patch = &self.elements[send.element as usize];
+                        let mean = patch.mean_of(&[patch.sent0()]);
+                        kernel * if mean > 0.0 { here / mean } else { 0.0 }
+                    } else {
+                        kernel
+                    };
+                    rays += 1;
+                    light += w;
+                    if !self
+                        .geo
+                        .bvh
+                        .occluded(recv.x, send.x, [recv.surface, send.surface])
+                    {
+                        open += w;
+                    }
+                }
+                if light > 0.0 {
+                    (open / light * 255.0).round() as u8
+                } else {
+                    255
+                }
+            })
+            .collect();
+        (out, rays)
+    }
+
     /// The strata of an end's points ([`Hierarchy::cluster_visibility`]): a cluster's two
     /// children with the areas of them that take part, or the end itself.
     fn strata(&self, id: u32, by_light: bool) -> smallvec::SmallVec<[(u32, f64); 2]> {
@@ -775,13 +887,19 @@ impl Hierarchy<'_> {
         b0: &[Rgb],
         out: &mut [Rgb],
     ) {
-        let v = l.visibility;
         let centre = self.centre_of(l.src);
         let mut slots = out.iter_mut();
         let mut put = |h: Rgb| {
             if let Some(slot) = slots.next() {
                 *slot = h;
             }
+        };
+        // each member's V: its own where the link keeps one, else the link's
+        let mut k = 0;
+        let mut next_v = || {
+            let v = l.member_v(k);
+            k += 1;
+            v
         };
         if l.affine {
             let source = self.emitter(l.src, emitters);
@@ -792,6 +910,7 @@ impl Hierarchy<'_> {
             // work
             let (sc, sr) = self.end(l.src).bound.sphere();
             self.for_members(l.recv, |_, area, x, n| {
+                let v = next_v();
                 if dot(n, sub(sc, x)) < -sr {
                     put([0.0; 3]);
                     return;
@@ -824,6 +943,7 @@ impl Hierarchy<'_> {
             add_member(&el.sent0(), el.area, self.geo.quads[el.piece.surface].n);
         }
         self.for_members(l.recv, |_, area, x, n| {
+            let v = next_v();
             let d = sub(centre, x);
             let r2 = dot(d, d);
             let c = dot(n, d);
@@ -855,6 +975,11 @@ impl Hierarchy<'_> {
             }
         };
         let (x, nx) = member(l.recv, i);
+        let v = if is_cluster(l.recv) {
+            l.member_v(self.clusters.place(i) - self.clusters.span(l.recv).start)
+        } else {
+            l.visibility
+        };
         if l.affine {
             let (sc, sr) = self.end(l.src).bound.sphere();
             if dot(nx, sub(sc, x)) < -sr {
@@ -864,7 +989,7 @@ impl Hierarchy<'_> {
             let q = &self.geo.quads[el.piece.surface];
             let cov = covariance(&el.piece.corners(&self.geo.quads), q.tri);
             let alone = Emitter::member(el.area, [1.0; 3], self.element_centre(j), q.n, cov);
-            return l.visibility * alone.irradiance(x, nx)[0] / el.area;
+            return v * alone.irradiance(x, nx)[0] / el.area;
         }
         let centre = self.centre_of(l.src);
         let toward = sub(self.centre_of(l.recv), centre);
@@ -875,7 +1000,7 @@ impl Hierarchy<'_> {
         if cy <= 0.0 || cx <= 0.0 || r2 <= 0.0 {
             return 0.0;
         }
-        l.visibility * cx * cy / (std::f64::consts::PI * r2 * r2.sqrt())
+        v * cx * cy / (std::f64::consts::PI * r2 * r2.sqrt())
     }
 
     /// How many members receive through a link into `id`.
@@ -1335,19 +1460,7 @@ mod tests {
     /// rays it was ½.
     #[test]
     fn a_cluster_links_visible_fraction_is_the_share_of_the_light() {
-        let plate = |x: f64, y: f64| {
-            let h = 0.05;
-            serde_json::json!({"positions": [[x - h, y, -h], [x - h, y, h], [x + h, y, h], [x + h, y, -h]],
-                "triangles": [[0, 1, 2], [0, 2, 3]]})
-        };
-        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
-            {"name": "near", "mesh": plate(0.5, 2.0), "reflectance": 0.5},
-            {"name": "far", "mesh": plate(-0.5, 0.0), "reflectance": 0.5},
-            {"name": "board", "corners": [[-1.5, 1, -1], [-1.5, 1, 1], [0, 1, 1], [0, 1, -1]],
-             "reflectance": 0.5},
-            {"name": "light", "corners": [[-0.05, 3, -0.05], [0.05, 3, -0.05], [0.05, 3, 0.05], [-0.05, 3, 0.05]],
-             "reflectance": 0.0, "emission": 1.0}]},
-            "solver": {"method": "hierarchical"}});
+        let doc = two_plates_and_a_board();
         with_two_meshes(&doc, |h, plates| {
             let light = 5usize;
             assert!(h.geo.quads[light].n[1] < 0.0 && !h.geo.quads[light].tri);
@@ -1380,6 +1493,44 @@ mod tests {
                 );
             }
         });
+    }
+
+    /// A link gives each receiving member of a partly visible pair its own V: the plates of
+    /// the test above, one in the light's view and one behind the board (every segment from
+    /// it to the light crosses the board), get 1 and 0, where the link's one V gave both
+    /// 0.8 or more.
+    #[test]
+    fn each_member_of_a_partly_visible_receiver_gets_its_own_visible_fraction() {
+        let doc = two_plates_and_a_board();
+        with_two_meshes(&doc, |h, plates| {
+            let light = 5u32;
+            for seed in 0..20 {
+                let (v, rays) = h.member_visibility(plates, light, seed);
+                assert_eq!(rays, (4 * MEMBER_RAYS) as u64, "every pair faces");
+                for (k, &p) in h.clusters.members(plates).iter().enumerate() {
+                    let want = if p < 2 { 255 } else { 0 };
+                    assert_eq!(v[k], want, "seed {seed}: member {p}");
+                }
+            }
+        });
+    }
+
+    /// Two small plates (0.1 m across, meshes of two triangles), one 1.1 m below a small
+    /// light and one 3 m from it behind a board.
+    fn two_plates_and_a_board() -> serde_json::Value {
+        let plate = |x: f64, y: f64| {
+            let h = 0.05;
+            serde_json::json!({"positions": [[x - h, y, -h], [x - h, y, h], [x + h, y, h], [x + h, y, -h]],
+                "triangles": [[0, 1, 2], [0, 2, 3]]})
+        };
+        serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "near", "mesh": plate(0.5, 2.0), "reflectance": 0.5},
+            {"name": "far", "mesh": plate(-0.5, 0.0), "reflectance": 0.5},
+            {"name": "board", "corners": [[-1.5, 1, -1], [-1.5, 1, 1], [0, 1, 1], [0, 1, -1]],
+             "reflectance": 0.5},
+            {"name": "light", "corners": [[-0.05, 3, -0.05], [0.05, 3, -0.05], [0.05, 3, 0.05], [-0.05, 3, 0.05]],
+             "reflectance": 0.0, "emission": 1.0}]},
+            "solver": {"method": "hierarchical"}})
     }
 
     /// Runs `check` on the hierarchy of a document whose two meshes (of two triangles each)

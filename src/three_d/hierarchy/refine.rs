@@ -682,6 +682,7 @@ impl Hierarchy<'_> {
                         affine: g.affine,
                         smooth: g.smooth,
                         sampled: g.sampled,
+                        members: g.members,
                     }),
                     ClusterVerdict::Hidden(smooth) => self.hidden_clusters.push((r, s, smooth)),
                     ClusterVerdict::Inert => {}
