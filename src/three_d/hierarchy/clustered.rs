@@ -575,8 +575,9 @@ impl Hierarchy<'_> {
         if v <= 0.0 {
             return (ClusterVerdict::Hidden(smooth), rays);
         }
-        // before B is known every cluster link is judged again after the first solve
-        // (`Hierarchy::rerefine`): its members' rays would be cast twice
+        // each member's own V where the judging rays, not the fresh ones, saw a blocked ray
+        // (see the module doc); none before B is known, since every cluster link is judged
+        // again after the first solve (`Hierarchy::rerefine`) and would cast them twice
         let lit = self.typical.iter().any(|&b| b > 0.0);
         let members = if lit && is_cluster(r) && judged < 1.0 {
             let (m, more) = self.member_visibility(r, s, seed ^ 3);
