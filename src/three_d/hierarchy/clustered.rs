@@ -576,19 +576,17 @@ impl Hierarchy<'_> {
             return (ClusterVerdict::Hidden(smooth), rays);
         }
         // each member's own V where the judging rays, not the fresh ones, saw a blocked ray
-        // (see the module doc); none before B is known, since every cluster link is judged
-        // again after the first solve (`Hierarchy::rerefine`) and would cast them twice
-        let lit = self.typical.iter().any(|&b| b > 0.0);
-        let members = if lit && is_cluster(r) && judged < 1.0 {
+        // (see the module doc). Before B is known a source's points are drawn by the light
+        // it emits, or by area with the kernel alone where it emits none, and every cluster
+        // link is judged again after the first solve (`Hierarchy::rerefine`): no members'
+        // rays until then, which would be cast twice
+        let members = if self.b_known() && is_cluster(r) && judged < 1.0 {
             let (m, more) = self.member_visibility(r, s, seed ^ 3);
             rays += more;
             Some(m)
         } else {
             None
         };
-        // before B is known a source's points are drawn by the light it emits, or by area
-        // with the kernel alone where it emits none: the link is judged again once B is
-        // known (`Hierarchy::rerefine`)
         (
             ClusterVerdict::Link(ClusterLinkGeometry {
                 visibility: v,
@@ -733,27 +731,14 @@ impl Hierarchy<'_> {
             let (a, b) = (k % sr.len(), (k / sr.len()) % ss.len());
             let recv = self.sample(sr[a].0, Draw::Receiving, &mut rng);
             let send = self.sample(ss[b].0, sending, &mut rng);
-            let (x, i, n) = (recv.x, recv.surface, recv.normal);
-            let (y, j, m) = (send.x, send.surface, send.normal);
+            let (x, i, y, j) = (recv.x, recv.surface, send.x, send.surface);
             drawn[a][b] += 1;
-            let d = sub(y, x);
-            let (cx, cy) = (dot(n, d), -dot(m, d));
-            if cx <= 0.0 || cy <= 0.0 {
+            let Some(kernel) = facing_kernel(&recv, &send, disc) else {
                 continue;
-            }
+            };
             valid[a][b] += 1;
             rays += 1;
-            let r2 = dot(d, d);
-            let kernel = cx * cy / (r2 * (r2 + disc));
-            let (s_, t_) = send.at;
-            let mut here = self.radiosity_at(send.element, s_, t_);
-            if by_light {
-                // drawn in proportion to its patch's mean B: weighted by its part of it
-                let patch = &self.elements[send.element as usize];
-                let mean = patch.mean_of(&[patch.sent0()]);
-                here = if mean > 0.0 { here / mean } else { 0.0 };
-            }
-            let w = [kernel * here, kernel];
+            let w = [kernel * self.drawn_light(&send, by_light), kernel];
             let through = !self.geo.bvh.occluded(x, y, [i, j]);
             for (c, w) in w.into_iter().enumerate() {
                 light[c][a][b] += w;
@@ -783,6 +768,24 @@ impl Hierarchy<'_> {
         }
     }
 
+    /// B where a ray from `send` starts, over its patch's mean B when the point was drawn by
+    /// the light its cluster's members send (in proportion to that mean: the ray is then
+    /// weighted by its part of it).
+    fn drawn_light(&self, send: &Sample, by_light: bool) -> f64 {
+        let (s, t) = send.at;
+        let here = self.radiosity_at(send.element, s, t);
+        if !by_light {
+            return here;
+        }
+        let patch = &self.elements[send.element as usize];
+        let mean = patch.mean_of(&[patch.sent0()]);
+        if mean > 0.0 {
+            here / mean
+        } else {
+            0.0
+        }
+    }
+
     /// Each receiving member's own visible fraction from source `s`, in 1/255ths, in the
     /// clusters' order: of [`MEMBER_RAYS`] rays from uniform points of the member (not on a
     /// covered part) to points of the source drawn as the link's are, the kernel-weighted
@@ -807,33 +810,22 @@ impl Hierarchy<'_> {
             .zip(&self.members[span])
             .map(|(&p, m)| {
                 // a member whose plane leaves the source behind it receives nothing from it
-                if dot(m.normal, sub(sc, m.centre)) < -sr {
+                if leaves_behind(m.normal, m.centre, (sc, sr)) {
                     return 255;
                 }
                 let (mut light, mut open) = (0.0, 0.0);
                 let disc = self.elements[p as usize].area.min(source_area) / std::f64::consts::PI;
                 for _ in 0..MEMBER_RAYS {
                     let recv = self.sample(p, Draw::Receiving, &mut rng);
-                    let mut facing = None;
-                    for _ in 0..COVERED_DRAWS {
+                    let facing = (0..COVERED_DRAWS).find_map(|_| {
                         let send = self.sample(s, sending, &mut rng);
-                        let d = sub(send.x, recv.x);
-                        let (cx, cy) = (dot(recv.normal, d), -dot(send.normal, d));
-                        if cx > 0.0 && cy > 0.0 {
-                            let r2 = dot(d, d);
-                            facing = Some((send, cx * cy / (r2 * (r2 + disc))));
-                            break;
-                        }
-                    }
+                        facing_kernel(&recv, &send, disc).map(|k| (send, k))
+                    });
                     let Some((send, kernel)) = facing else {
                         continue;
                     };
                     let w = if by_light {
-                        let (s_, t_) = send.at;
-                        let here = self.radiosity_at(send.element, s_, t_);
-                        let patch = &self.elements[send.element as usize];
-                        let mean = patch.mean_of(&[patch.sent0()]);
-                        kernel * if mean > 0.0 { here / mean } else { 0.0 }
+                        kernel * self.drawn_light(&send, true)
                     } else {
                         kernel
                     };
@@ -912,7 +904,7 @@ impl Hierarchy<'_> {
             let (sc, sr) = self.end(l.src).bound.sphere();
             self.for_members(l.recv, |_, area, x, n| {
                 let v = next_v();
-                if dot(n, sub(sc, x)) < -sr {
+                if leaves_behind(n, x, (sc, sr)) {
                     put([0.0; 3]);
                     return;
                 }
@@ -983,7 +975,7 @@ impl Hierarchy<'_> {
         };
         if l.affine {
             let (sc, sr) = self.end(l.src).bound.sphere();
-            if dot(nx, sub(sc, x)) < -sr {
+            if leaves_behind(nx, x, (sc, sr)) {
                 return 0.0;
             }
             let el = &self.elements[j as usize];
@@ -1082,6 +1074,24 @@ impl Hierarchy<'_> {
             .map(|&p| self.elements[p as usize].sent0())
             .collect()
     }
+}
+
+/// The kernel between a receiving and a sending point that face each other, kept finite by
+/// `disc` added to r² (see [`Hierarchy::cluster_visibility`]); `None` where either faces away.
+fn facing_kernel(recv: &Sample, send: &Sample, disc: f64) -> Option<f64> {
+    let d = sub(send.x, recv.x);
+    let (cx, cy) = (dot(recv.normal, d), -dot(send.normal, d));
+    if cx <= 0.0 || cy <= 0.0 {
+        return None;
+    }
+    let r2 = dot(d, d);
+    Some(cx * cy / (r2 * (r2 + disc)))
+}
+
+/// Whether the plane through `x` with normal `n` leaves the whole sphere behind it: a member
+/// there receives nothing from a source inside the sphere.
+fn leaves_behind(n: V3, x: V3, (centre, radius): (V3, f64)) -> bool {
+    dot(n, sub(centre, x)) < -radius
 }
 
 /// Adds the irradiance `h` (the coefficient h₀ of a constant) to an element's H, on its

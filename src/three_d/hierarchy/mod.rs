@@ -306,12 +306,18 @@ impl<'g> Hierarchy<'g> {
         sum
     }
 
+    /// Whether B is known: a solve has been made (the typical B is only E before the first,
+    /// which is 0 over the surfaces that emit nothing).
+    fn b_known(&self) -> bool {
+        self.typical.iter().any(|&b| b > 0.0)
+    }
+
     /// Re-evaluates every link with the current B; returns how many were refined.
     fn rerefine(&mut self, progress: &dyn Progress) -> Result<usize, Cancelled> {
         // the cluster links were judged before B was known, their sources' points drawn by
         // area where they emit nothing rather than by the light they send
         // ([`Hierarchy::cluster_visibility`]): every one is judged again
-        let unlit = self.typical.iter().all(|&b| b <= 0.0);
+        let unlit = !self.b_known();
         self.typical = self.typical_radiosity();
         for root in 0..self.quads.len() {
             self.measure_detail(root as u32);

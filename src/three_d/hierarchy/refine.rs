@@ -554,7 +554,7 @@ impl Hierarchy<'_> {
         // requirement is 0.3 %; 0.31 % when the box had 70 k links and less noise averaged)
         if !clear {
             let fresh = used;
-            if self.typical.iter().any(|&b| b > 0.0) {
+            if self.b_known() {
                 v = self.share_of_light(r, s, fresh, &mut rays);
             } else if partial {
                 // partly visible before B is known: the fraction is taken again with the
