@@ -17,8 +17,8 @@
 //! oriented transfer of Sillion 1995, §4). When every member of the source faces every point
 //! of the receiver (`Bound::before`), the source's sum is carried by a few moments (the
 //! irradiance's numerator is affine in the receiving point; [`crate::three_d::hierarchy`]'s
-//! `Emitter`), and the error is second order in the source's size over the distance;
-//! otherwise the source's intensity is taken toward the receiver's centre,
+//! `Emitter`, expanded to second order), and the error is third order in the source's size
+//! over the distance; otherwise the source's intensity is taken toward the receiver's centre,
 //!
 //! ```text
 //! I_S(ω)   = Σ_{j ∈ S} B̄_j A_j (n_j · ω)₊ / π          (the radiant intensity of S toward ω)
@@ -193,6 +193,26 @@ impl Bound {
         let m = -other.support(scale(self.axis, -1.0)) - self.slab[1];
         let tol = 1e-9 * (self.diameter() + other.diameter());
         m > tol && self.cos * m - self.sin * self.reach(other) > tol
+    }
+
+    /// Which side of the plane normal to the unit `omega` every normal of the set is on:
+    /// `Some(true)` when n · ω > 0 for every one, `Some(false)` when n · ω < 0 for every
+    /// one, `None` when the cone may hold both (always for a cone of π/2 or more). For a
+    /// normal n at an angle of cosine a · n ≥ cos and sine |a × n| ≤ sin from the axis a,
+    /// n · ω lies within (a · n)(a · ω) ± |a × n| |a × ω|.
+    pub(super) fn side(&self, omega: V3) -> Option<bool> {
+        if self.cos <= 0.0 {
+            return None;
+        }
+        let along = dot(self.axis, omega);
+        let across = (1.0 - along * along).max(0.0).sqrt();
+        if along > 0.0 && self.cos * along - self.sin * across > 0.0 {
+            Some(true)
+        } else if along < 0.0 && self.cos * along + self.sin * across < 0.0 {
+            Some(false)
+        } else {
+            None
+        }
     }
 
     /// Whether the two sets may exchange light: each may be in front of the other.
