@@ -5,7 +5,8 @@
 //! `benches/README.md` ("Meshes: links against triangles") is what this prints.
 //!
 //! `cargo bench --bench meshes` runs 10², 10³ and 10⁴; `WAVRAD_BENCH_MESH_SIZES=4,5` (10^k) picks
-//! others, `WAVRAD_BENCH_MESH_TIMEOUT` (seconds, 900 by default) bounds each solve.
+//! others (`6`: 10⁶ triangles as 200 spheres of level 4), `WAVRAD_BENCH_MESH_TIMEOUT` (seconds,
+//! 900 by default) bounds each solve.
 
 use serde_json::{json, Value};
 use std::process::Command;
@@ -139,7 +140,9 @@ fn main() {
             3 => (1, 3),
             4 => (8, 3),
             5 => (81, 3),
-            _ => (81 * 10, 3),
+            // a document holds at most 256 surfaces (`Limits::max_surfaces`): 10⁶ as 200
+            // spheres of 5 120
+            _ => (200, 4),
         };
         let triangles = spheres * 20 * 4usize.pow(level);
         match run(&scene(spheres, level), timeout) {
