@@ -138,12 +138,13 @@ impl ClusterLink {
 ///
 /// What is left is third order in the source's size over the distance, whatever the source's
 /// shape. (Expanded about each channel's own centroid of the weights, c(x) = m / W, the
-/// first-order term vanishes, but c then depends on the weights at x and on the channel, and
-/// g and its derivatives had to be evaluated three times, after the weights: the sweeps of
-/// a job of 10⁵ triangles took 22 % longer.) Without the second-order term the transfer overestimates, always (1/r⁴ is convex: a
-/// disc of radius a at height h on its axis gives a²/h² for a²/(h² + a²)), and those errors
-/// add up over a scene's cluster links: a room whose six walls were meshes came out 1.3 %
-/// bright (energy balance 1.013, and 0.9995 with no cluster links).
+/// first-order term vanishes, but c then depends on the weights at x and on the channel: g
+/// and its derivatives were evaluated three times, after the weights, and that was over a
+/// quarter of a job of 10⁵ triangles.) Without the second-order term the transfer
+/// overestimates, always (1/r⁴ is convex: a disc of radius a at height h on its axis gives
+/// a²/h² for a²/(h² + a²)), and those errors add up over a scene's cluster links: a room
+/// whose six walls were meshes came out 1.3 % bright (energy balance 1.013, and 0.9995 with
+/// no cluster links).
 #[derive(Debug, Clone, Copy, Default)]
 struct Emitter {
     normal: [V3; 3],
