@@ -1339,6 +1339,19 @@ mod tests {
         )
     }
 
+    /// The hierarchy of `quads` at order 1 with elements no smaller than 0.25, linked and
+    /// solved.
+    fn solved<'a>(
+        geo: &'a crate::three_d::projection::Geometry,
+        quads: &'a [crate::scene::Quad],
+    ) -> Hierarchy<'a> {
+        let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(0.25), None);
+        let mut h = Hierarchy::new(geo, quads, 1, sizing, 1e-3);
+        h.link_all(&crate::progress::Silent).unwrap();
+        while h.sweep() > 1e-9 {}
+        h
+    }
+
     /// A cluster link's kernel ([`Hierarchy::cluster_link_kernel`], what eq. (5) samples),
     /// applied to its source's members' B, is the transfer the link makes: exactly (to
     /// rounding) for a source seen as its intensity, and for an affine source of one member.
@@ -1348,10 +1361,7 @@ mod tests {
     fn a_cluster_links_kernel_applied_to_its_members_b_is_its_transfer() {
         let quads = super::super::tests::corner_under_a_meshed_ceiling();
         let geo = crate::three_d::projection::Geometry::new(&quads);
-        let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(0.25), None);
-        let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3);
-        h.link_all(&crate::progress::Silent).unwrap();
-        while h.sweep() > 1e-9 {}
+        let h = solved(&geo, &quads);
         let emitters = h.emitters();
         let mut checked = [0, 0];
         for l in &h.cluster_links {
@@ -1425,10 +1435,7 @@ mod tests {
                  "reflectance": 0.0, "emission": 1.0}]},
             "solver": {"method": "hierarchical"}}));
         let geo = crate::three_d::projection::Geometry::new(&quads);
-        let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(0.25), None);
-        let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3);
-        h.link_all(&crate::progress::Silent).unwrap();
-        while h.sweep() > 1e-9 {}
+        let h = solved(&geo, &quads);
         let emitters = h.emitters();
         let mut rng = SplitMix(11);
         let mut opened = 0;
