@@ -30,6 +30,13 @@ pub enum JobError {
          or lower solver.order or solver.resolution"
     )]
     TooLarge { links: usize, order: usize },
+    /// The refinement's frontier outgrew the memory the solver allows itself: one level asked
+    /// to judge more than `pairs` pairs of elements and clusters at once.
+    #[error(
+        "the refinement would judge more than {pairs} pairs at once; raise solver.epsilon \
+         or solver.min_element_size"
+    )]
+    TooManyPairs { pairs: usize },
 }
 
 impl From<Cancelled> for JobError {

@@ -791,7 +791,7 @@ impl Queue {
                 StatusCode::UNPROCESSABLE_ENTITY,
                 e.to_string(),
             ),
-            Ok(Err(e @ JobError::TooLarge { .. })) => failure(
+            Ok(Err(e @ (JobError::TooLarge { .. } | JobError::TooManyPairs { .. }))) => failure(
                 "too-large",
                 "The problem is too large",
                 StatusCode::UNPROCESSABLE_ENTITY,

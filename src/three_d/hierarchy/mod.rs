@@ -17,7 +17,9 @@
 //! (a Jacobi sweep of B = E + ρ K B in the multiresolution basis; with the document's
 //! `"gauss-seidel"`, both steps patch by patch, each patch's gather reading the B that the
 //! patches before it got in the same sweep) to the solver's tolerance,
-//! then re-refines the links with the new B ("BF refinement") until no link changes.
+//! then re-refines the links with the new B ("BF refinement") until no link changes. Once the
+//! changes of the sweeps show one dominant mode, B jumps to the sum of their geometric series
+//! ([`crate::methods::extrapolation`]); the sweeps after it go on to the same fixed point.
 //!
 //! Where a solid stands on a surface ([`crate::three_d::cover`]), the elements across the outline of
 //! its foot are split to the finest level before any link is made, and every partly covered
@@ -36,6 +38,7 @@ mod tree;
 use crate::math::basis::Filters;
 use crate::math::field::{Field, Leaf};
 use crate::math::triangle::TriangleBasis;
+use crate::methods::extrapolation::Lyusternik;
 use crate::methods::solution::{JobError, Solution};
 use crate::methods::solve::Solved;
 use crate::progress::{Cancelled, Phase, Progress};
@@ -113,10 +116,10 @@ struct Hierarchy<'g> {
     cluster_state: Vec<clustered::State>,
     rays: u64,
     refinements: usize,
-    /// The most links the refinement may make: their blocks (k⁴ numbers each) in 1 GiB.
-    max_links: usize,
-    /// Set when the refinement stopped at `max_links`.
-    too_large: bool,
+    /// What the refinement may hold.
+    budget: Budget,
+    /// Set when the refinement stopped at a bound of its `budget`.
+    too_large: Option<Overrun>,
     /// The document's `iteration`: Gauss–Seidel sweeps ([`Hierarchy::sweep`]) rather than
     /// Jacobi.
     gauss_seidel: bool,
@@ -204,8 +207,8 @@ impl<'g> Hierarchy<'g> {
             cluster_state: Vec::new(),
             rays: 0,
             refinements: 0,
-            max_links: LINK_BYTES / (8 * k.pow(4) + 64),
-            too_large: false,
+            budget: Budget::of_order(order),
+            too_large: None,
             gauss_seidel: false,
         };
         // an element across the outline keeps one polynomial on its exposed part, which the
@@ -471,6 +474,24 @@ impl<'g> Hierarchy<'g> {
         }
     }
 
+    /// Every element's B, one after another, into `x`.
+    fn coefficients(&self, x: &mut Vec<f64>) {
+        x.clear();
+        x.extend(self.elements.iter().flat_map(|e| e.b.iter().flatten()));
+    }
+
+    /// Sets every element's B from `x`, as [`Hierarchy::coefficients`] lists them.
+    fn set_coefficients(&mut self, x: &[f64]) {
+        for (b, v) in self
+            .elements
+            .iter_mut()
+            .flat_map(|e| e.b.iter_mut())
+            .zip(x.chunks_exact(3))
+        {
+            b.copy_from_slice(v);
+        }
+    }
+
     /// Each receiver with its run of links (the links are sorted by receiver).
     fn receiver_runs(&self) -> Vec<(u32, std::ops::Range<usize>)> {
         let mut runs = Vec::new();
@@ -731,6 +752,44 @@ fn surface_groups(quads: &[Quad]) -> Vec<Vec<u32>> {
 /// The memory the links' blocks may take.
 const LINK_BYTES: usize = 1 << 30;
 
+/// The memory the pairs waiting to be judged at one level of the refinement may take.
+const FRONTIER_BYTES: usize = 1 << 31;
+
+/// The most pairs of a level judged at once ([`Budget::chunk`]).
+const CHUNK: usize = 1 << 18;
+
+/// The most the refinement may hold, from the memory it allows itself.
+#[derive(Debug, Clone, Copy)]
+struct Budget {
+    /// The links made: a block of k⁴ numbers each, within [`LINK_BYTES`].
+    links: usize,
+    /// The pairs of one level's frontier, [`refine::PAIR_BYTES`] each, within
+    /// [`FRONTIER_BYTES`].
+    pairs: usize,
+    /// The pairs judged at once. A pair's verdict, class key and slot take a few hundred
+    /// bytes: a frontier of millions (a cluster tree of 10⁶ triangles linked to itself) is
+    /// judged in chunks of this many, in order, so that those stay within tens of MB. A
+    /// frontier no larger is judged in one.
+    chunk: usize,
+}
+
+impl Budget {
+    fn of_order(order: usize) -> Self {
+        Budget {
+            links: LINK_BYTES / (8 * (order + 1).pow(4) + 64),
+            pairs: FRONTIER_BYTES / refine::PAIR_BYTES,
+            chunk: CHUNK,
+        }
+    }
+}
+
+/// Which bound of the [`Budget`] the refinement reached.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Overrun {
+    Links,
+    Pairs,
+}
+
 /// How far above E_max / (1 − ρ_max) a surface's mean B may come before the iteration is taken
 /// to diverge. That bound holds for the exact solution (every form factor sum is at most 1);
 /// a Galerkin approximation overshoots it by far less, and a diverging iteration grows past
@@ -776,15 +835,17 @@ fn straddles_emission(quad: &Quad, piece: Piece) -> bool {
     refine::peak_emission(quad, piece) > 0.0 && !inside
 }
 
-/// Why the refinement stopped: the caller's cancel, or the link budget.
+/// Why the refinement stopped: the caller's cancel, or a bound of its budget.
 fn stopped(h: &Hierarchy, _: Cancelled) -> JobError {
-    if h.too_large {
-        JobError::TooLarge {
-            links: h.max_links,
+    match h.too_large {
+        Some(Overrun::Links) => JobError::TooLarge {
+            links: h.budget.links,
             order: h.k - 1,
-        }
-    } else {
-        JobError::Cancelled
+        },
+        Some(Overrun::Pairs) => JobError::TooManyPairs {
+            pairs: h.budget.pairs,
+        },
+        None => JobError::Cancelled,
     }
 }
 
@@ -819,7 +880,10 @@ pub(crate) fn solve(
     // the solves before the last only steer the refinement, for which B to ROUGH will do;
     // the last one (no link changed, or the passes ran out) goes to the document's tolerance
     let mut last = false;
+    let mut x = Vec::new();
     for pass in 0..=MAX_PASSES {
+        // each pass sweeps a new operator: its dominant mode is measured afresh
+        let mut lyusternik = Lyusternik::default();
         last |= pass == MAX_PASSES;
         let tolerance = if last {
             job.solver.tolerance
@@ -846,6 +910,13 @@ pub(crate) fn solve(
             if residual < tolerance {
                 converged = residual < job.solver.tolerance;
                 break;
+            }
+            // the last sweep is always a sweep, so that B and H agree
+            if iterations + 1 < job.solver.max_iterations {
+                h.coefficients(&mut x);
+                if lyusternik.step(&mut x).is_some() {
+                    h.set_coefficients(&x);
+                }
             }
         }
         solve_ms += ms(t);
@@ -1148,5 +1219,84 @@ mod tests {
             "{} Gauss–Seidel sweeps, {} Jacobi",
             gauss_seidel.1, jacobi.1
         );
+    }
+
+    /// The budget bounds the links a refinement makes and, apart, the pairs one level holds:
+    /// a link budget of exactly the links made lets the refinement finish (the pairs of its
+    /// fine levels, most of which end split, hidden or inert, are not links); one link
+    /// fewer stops it with the link budget; a bound on the pairs below the first level's
+    /// stops it with that bound. Both say what they reached.
+    #[test]
+    fn the_refinement_stops_at_the_links_it_makes_and_apart_at_the_pairs_it_holds() {
+        let quads = &corner_under_a_meshed_ceiling();
+        let geo = Geometry::new(quads);
+        let refine = |budget: Budget| {
+            let sizing = Sizing::new(&geo.quads, Some(0.25), None);
+            let mut h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
+            h.budget = budget;
+            let made = h.link_all(&crate::progress::Silent);
+            (made.map_err(|c| stopped(&h, c)), h.links.len())
+        };
+        let unbounded = Budget {
+            links: usize::MAX,
+            pairs: usize::MAX,
+            chunk: usize::MAX,
+        };
+        let (made, links) = refine(unbounded);
+        assert!(made.is_ok() && links > 100, "{links} links");
+        let (made, exact) = refine(Budget { links, ..unbounded });
+        assert!(made.is_ok(), "{made:?}");
+        assert_eq!(exact, links);
+        let (made, _) = refine(Budget {
+            links: links - 1,
+            ..unbounded
+        });
+        assert_eq!(
+            made,
+            Err(JobError::TooLarge {
+                links: links - 1,
+                order: 1
+            })
+        );
+        let (made, _) = refine(Budget {
+            pairs: 1,
+            ..unbounded
+        });
+        assert_eq!(made, Err(JobError::TooManyPairs { pairs: 1 }));
+    }
+
+    /// A level judged in chunks makes the refinement that it makes judged at once: the same
+    /// elements, links and cluster links, and, solved, the same B (to rounding: the elements
+    /// are numbered in another order, so sums run in another order).
+    #[test]
+    fn a_level_judged_in_chunks_refines_as_judged_at_once() {
+        let quads = &corner_under_a_meshed_ceiling();
+        let geo = Geometry::new(quads);
+        let solve = |chunk: usize| {
+            let sizing = Sizing::new(&geo.quads, Some(0.25), None);
+            let mut h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
+            h.budget.chunk = chunk;
+            h.link_all(&crate::progress::Silent).unwrap();
+            while h.sweep() > 1e-12 {}
+            let counts = (
+                h.elements.len(),
+                h.links.len(),
+                h.cluster_links.len(),
+                h.rays,
+            );
+            let means: Vec<Rgb> = (0..quads.len()).map(|i| h.elements[i].b[0]).collect();
+            (counts, means)
+        };
+        let (once, chunked) = (solve(usize::MAX), solve(5));
+        assert_eq!(once.0, chunked.0);
+        assert!(once.0 .2 > 0, "no link with a cluster at an end");
+        for (a, b) in once.1.iter().zip(&chunked.1) {
+            for c in 0..3 {
+                assert!(
+                    (a[c] - b[c]).abs() <= 1e-12 * a[c].abs().max(1e-12),
+                    "{a:?} {b:?}"
+                );
+            }
+        }
     }
 }

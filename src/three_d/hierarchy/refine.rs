@@ -42,7 +42,7 @@
 
 use super::clustered::{ClusterLink, ClusterVerdict};
 use super::tree::{push, Element, NONE};
-use super::Hierarchy;
+use super::{Hierarchy, Overrun};
 use crate::progress::{Cancelled, Progress};
 use crate::three_d::cluster::is_cluster;
 use crate::three_d::congruence::{Congruence, Labels};
@@ -64,6 +64,10 @@ use rayon::prelude::*;
 /// block, 1 / 5 / 10 units from its foot, the whole tolerance left B +40 / +24 / +16 % bright;
 /// half of it, +14 / +3 / −0.4 %, for 65 k → 70 k links (a quarter: +4 / −4 / −5 %, 77 k).
 pub(super) const CONTACT_SHARE: f64 = 0.5;
+
+/// What one pair of the frontier holds beyond its chunk: itself, and up to four pairs of the
+/// next level made by its split.
+pub(super) const PAIR_BYTES: usize = 5 * std::mem::size_of::<(u32, u32)>();
 
 /// Whether the triangle with vertices `v` (in a surface's (s, t)) holds the point (s, t),
 /// its edges included.
@@ -575,8 +579,8 @@ impl Hierarchy<'_> {
 
     /// Refines the interactions `pairs` (receiver, source) top-down, appending the accepted
     /// (recv, src, geom, V) to `out` in a fixed order. Each level's pairs are judged in
-    /// parallel; the splits they ask for are then made in order, so the elements are numbered
-    /// the same on every run.
+    /// parallel, in chunks of the budget's `chunk` pairs; the splits they ask for are then
+    /// made in order, so the elements are numbered the same on every run.
     pub(super) fn refine_all(
         &mut self,
         mut frontier: Vec<(u32, u32)>,
@@ -584,113 +588,138 @@ impl Hierarchy<'_> {
         progress: &dyn Progress,
     ) -> Result<(), Cancelled> {
         while !frontier.is_empty() {
-            progress.check()?;
-            if self.links.len() + out.len() + frontier.len() > self.max_links {
-                self.too_large = true;
-                return Err(Cancelled);
-            }
-            // pairs with a cluster at an end go to their own oracle ([`super::clustered`]),
-            // pairs of elements (of two facing patches: `may_link`) to
-            // this one
-            let (clustered, pairs): (Vec<_>, Vec<_>) = frontier
-                .into_iter()
-                .partition(|&(r, s)| is_cluster(r) || is_cluster(s));
-            let cluster_verdicts: Vec<(ClusterVerdict, u64)> = clustered
-                .par_iter()
-                .map(|&(r, s)| {
-                    if progress.cancelled() {
-                        (ClusterVerdict::Inert, 0)
-                    } else {
-                        self.judge_cluster(r, s)
-                    }
-                })
-                .collect();
-            // the estimate depends on the pair's shape only: once per class of congruent
-            // pairs (the estimate's points are symmetric on the receiver)
-            let piece = |e: u32| self.elements[e as usize].piece;
-            let classes: Vec<_> = pairs
-                .par_iter()
-                .map(|&(r, s)| {
-                    Congruence::of(&self.geo.quads, piece(r), piece(s), self.unit, true).key
-                })
-                .collect();
-            let (unique, slots) = first_of_each(classes.into_iter().zip(pairs.iter().copied()));
-            let estimates: Vec<(f64, f64)> = unique
-                .par_iter()
-                .map(|&(r, s)| self.estimate(r, s))
-                .collect();
-            // a level of a fine refinement judges millions of pairs (seconds of rays): each
-            // pair looks at the cancel first, so that a cancel stops the level at once
-            let verdicts: Vec<(Verdict, u64)> = pairs
-                .par_iter()
-                .zip(slots.par_iter())
-                .map(|(&(r, s), &slot)| {
-                    if progress.cancelled() {
-                        (Verdict::Inert, 0)
-                    } else {
-                        self.judge(r, s, estimates[slot])
-                    }
-                })
-                .collect();
-            progress.check()?;
             let mut next = Vec::new();
-            for (&(r, s), (verdict, rays)) in pairs.iter().zip(verdicts) {
-                self.rays += rays;
-                match verdict {
-                    Verdict::Split { source } => {
-                        let split_r = self.splittable(r)
-                            && (!self.splittable(s)
-                                || (!source
-                                    && (self.coarse(r)
-                                        || self.elements[r as usize].area
-                                            >= self.elements[s as usize].area)));
-                        if split_r {
-                            let c = self.split(r);
-                            next.extend((0..4).map(|i| (c + i, s)));
-                        } else {
-                            let c = self.split(s);
-                            next.extend((0..4).map(|i| (r, c + i)));
-                        }
-                    }
-                    Verdict::Link(x, v) => out.push((r, s, x, v)),
-                    Verdict::Hidden(x) => self.hidden.push((r, s, x)),
-                    Verdict::Inert => {}
-                }
-            }
-            for (&(r, s), (verdict, rays)) in clustered.iter().zip(cluster_verdicts) {
-                self.rays += rays;
-                match verdict {
-                    ClusterVerdict::Both => {
-                        let [a, b] = self.clusters.get(r).children;
-                        let children = [(a, a), (a, b), (b, a), (b, b)];
-                        next.extend(children.into_iter().filter(|&p| self.may_link(p)));
-                    }
-                    ClusterVerdict::Receiver => {
-                        for c in self.children_of(r) {
-                            next.extend(self.may_link((c, s)).then_some((c, s)));
-                        }
-                    }
-                    ClusterVerdict::Source => {
-                        for c in self.children_of(s) {
-                            next.extend(self.may_link((r, c)).then_some((r, c)));
-                        }
-                    }
-                    ClusterVerdict::Link(g) => self.cluster_links.push(ClusterLink {
-                        recv: r,
-                        src: s,
-                        visibility: g.visibility,
-                        affine: g.affine,
-                        smooth: g.smooth,
-                        sampled: g.sampled,
-                        members: g.members,
-                    }),
-                    ClusterVerdict::Hidden(smooth) => self.hidden_clusters.push((r, s, smooth)),
-                    ClusterVerdict::Inert => {}
-                }
+            for chunk in frontier.chunks(self.budget.chunk) {
+                progress.check()?;
+                self.within_budget(out.len(), frontier.len())?;
+                self.judge_level(chunk, out, &mut next, progress)?;
             }
             frontier = next;
         }
+        self.within_budget(out.len(), 0)
+    }
+
+    /// Judges the pairs `chunk` of one level: accepted pairs go to `out` (or the cluster
+    /// links, or the hidden pairs), the pairs that the splits they ask for make go to `next`.
+    fn judge_level(
+        &mut self,
+        chunk: &[(u32, u32)],
+        out: &mut Vec<(u32, u32, Factors, Seen)>,
+        next: &mut Vec<(u32, u32)>,
+        progress: &dyn Progress,
+    ) -> Result<(), Cancelled> {
+        // pairs with a cluster at an end go to their own oracle ([`super::clustered`]),
+        // pairs of elements (of two facing patches: `may_link`) to this one
+        let (clustered, pairs): (Vec<_>, Vec<_>) = chunk
+            .iter()
+            .copied()
+            .partition(|&(r, s)| is_cluster(r) || is_cluster(s));
+        let cluster_verdicts: Vec<(ClusterVerdict, u64)> = clustered
+            .par_iter()
+            .map(|&(r, s)| {
+                if progress.cancelled() {
+                    (ClusterVerdict::Inert, 0)
+                } else {
+                    self.judge_cluster(r, s)
+                }
+            })
+            .collect();
+        // the estimate depends on the pair's shape only: once per class of congruent
+        // pairs (the estimate's points are symmetric on the receiver)
+        let piece = |e: u32| self.elements[e as usize].piece;
+        let classes: Vec<_> = pairs
+            .par_iter()
+            .map(|&(r, s)| Congruence::of(&self.geo.quads, piece(r), piece(s), self.unit, true).key)
+            .collect();
+        let (unique, slots) = first_of_each(classes.into_iter().zip(pairs.iter().copied()));
+        let estimates: Vec<(f64, f64)> = unique
+            .par_iter()
+            .map(|&(r, s)| self.estimate(r, s))
+            .collect();
+        // a level of a fine refinement judges millions of pairs (seconds of rays): each
+        // pair looks at the cancel first, so that a cancel stops the level at once
+        let verdicts: Vec<(Verdict, u64)> = pairs
+            .par_iter()
+            .zip(slots.par_iter())
+            .map(|(&(r, s), &slot)| {
+                if progress.cancelled() {
+                    (Verdict::Inert, 0)
+                } else {
+                    self.judge(r, s, estimates[slot])
+                }
+            })
+            .collect();
+        progress.check()?;
+        for (&(r, s), (verdict, rays)) in pairs.iter().zip(verdicts) {
+            self.rays += rays;
+            match verdict {
+                Verdict::Split { source } => {
+                    let split_r = self.splittable(r)
+                        && (!self.splittable(s)
+                            || (!source
+                                && (self.coarse(r)
+                                    || self.elements[r as usize].area
+                                        >= self.elements[s as usize].area)));
+                    if split_r {
+                        let c = self.split(r);
+                        next.extend((0..4).map(|i| (c + i, s)));
+                    } else {
+                        let c = self.split(s);
+                        next.extend((0..4).map(|i| (r, c + i)));
+                    }
+                }
+                Verdict::Link(x, v) => out.push((r, s, x, v)),
+                Verdict::Hidden(x) => self.hidden.push((r, s, x)),
+                Verdict::Inert => {}
+            }
+        }
+        for (&(r, s), (verdict, rays)) in clustered.iter().zip(cluster_verdicts) {
+            self.rays += rays;
+            match verdict {
+                ClusterVerdict::Both => {
+                    let [a, b] = self.clusters.get(r).children;
+                    let children = [(a, a), (a, b), (b, a), (b, b)];
+                    next.extend(children.into_iter().filter(|&p| self.may_link(p)));
+                }
+                ClusterVerdict::Receiver => {
+                    for c in self.children_of(r) {
+                        next.extend(self.may_link((c, s)).then_some((c, s)));
+                    }
+                }
+                ClusterVerdict::Source => {
+                    for c in self.children_of(s) {
+                        next.extend(self.may_link((r, c)).then_some((r, c)));
+                    }
+                }
+                ClusterVerdict::Link(g) => self.cluster_links.push(ClusterLink {
+                    recv: r,
+                    src: s,
+                    visibility: g.visibility,
+                    affine: g.affine,
+                    smooth: g.smooth,
+                    sampled: g.sampled,
+                    members: g.members,
+                }),
+                ClusterVerdict::Hidden(smooth) => self.hidden_clusters.push((r, s, smooth)),
+                ClusterVerdict::Inert => {}
+            }
+        }
         Ok(())
+    }
+
+    /// Whether the refinement still fits its [`Budget`]: the links made (with `made` more
+    /// accepted and not yet built) and the `pairs` of the frontier. The two are bounded
+    /// apart: a pair waiting to be judged holds [`PAIR_BYTES`], not a block, and many pairs
+    /// of a fine level end split, hidden or inert rather than linked.
+    fn within_budget(&mut self, made: usize, pairs: usize) -> Result<(), Cancelled> {
+        self.too_large = if self.links.len() + made > self.budget.links {
+            Some(Overrun::Links)
+        } else if pairs > self.budget.pairs {
+            Some(Overrun::Pairs)
+        } else {
+            None
+        };
+        self.too_large.map_or(Ok(()), |_| Err(Cancelled))
     }
 
     /// Whether a pair that a cluster's split makes is worth judging: one with a cluster at an
