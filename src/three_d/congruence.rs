@@ -81,7 +81,7 @@ impl Relabel {
 }
 
 /// Entries of a class key: 6 of the coarse part, 12 of the fine.
-pub(super) type Key = [i64; 18];
+type Key = [i64; 18];
 
 /// A pair's class and how its labels map to the class's.
 #[derive(Debug, Clone, Copy)]

@@ -1033,6 +1033,13 @@ fn morton(s: usize, t: usize) -> usize {
 mod tests {
     use super::*;
 
+    /// The hierarchy of the tests here, before any link: order 1, elements down to 0.25 m,
+    /// ε = 1e-3.
+    fn hierarchy<'g>(geo: &'g Geometry, quads: &'g [Quad]) -> Hierarchy<'g> {
+        let sizing = Sizing::new(&geo.quads, Some(0.25), None);
+        Hierarchy::new(geo, quads, 1, sizing, 1e-3)
+    }
+
     /// A 4 × 4 m ceiling at height 2 facing down: a mesh of 4 × 4 squares, each split along
     /// its diagonal.
     fn ceiling() -> serde_json::Value {
@@ -1091,8 +1098,7 @@ mod tests {
             "solver": {"method": "hierarchical"}});
         let quads = &patches(&doc);
         let geo = Geometry::new(quads);
-        let sizing = Sizing::new(&geo.quads, Some(0.25), None);
-        let h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
+        let h = hierarchy(&geo, quads);
         // the share of each probed triangle that is exposed: 0 under the light, 1 elsewhere,
         // but for the probe's strip along the light's edge (a sixteenth of a cell)
         let exposed: Vec<f64> = (0..geo.quads.len())
@@ -1140,8 +1146,7 @@ mod tests {
     fn links_made_before_b_is_known_take_the_share_of_the_light_after_the_first_solve() {
         let quads = &corner_under_a_meshed_ceiling();
         let geo = Geometry::new(quads);
-        let sizing = Sizing::new(&geo.quads, Some(0.25), None);
-        let mut h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
+        let mut h = hierarchy(&geo, quads);
         h.link_all(&crate::progress::Silent).unwrap();
         let unlit: Vec<(u32, u32, u8)> = h
             .links
@@ -1184,8 +1189,7 @@ mod tests {
         let quads = &corner_under_a_meshed_ceiling();
         let geo = Geometry::new(quads);
         let solve = |gauss_seidel: bool| {
-            let sizing = Sizing::new(&geo.quads, Some(0.25), None);
-            let mut h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
+            let mut h = hierarchy(&geo, quads);
             h.link_all(&crate::progress::Silent).unwrap();
             h.gauss_seidel = gauss_seidel;
             let mut sweeps = 0;
@@ -1231,8 +1235,7 @@ mod tests {
         let quads = &corner_under_a_meshed_ceiling();
         let geo = Geometry::new(quads);
         let refine = |budget: Budget| {
-            let sizing = Sizing::new(&geo.quads, Some(0.25), None);
-            let mut h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
+            let mut h = hierarchy(&geo, quads);
             h.budget = budget;
             let made = h.link_all(&crate::progress::Silent);
             (made.map_err(|c| stopped(&h, c)), h.links.len())
@@ -1273,8 +1276,7 @@ mod tests {
         let quads = &corner_under_a_meshed_ceiling();
         let geo = Geometry::new(quads);
         let solve = |chunk: usize| {
-            let sizing = Sizing::new(&geo.quads, Some(0.25), None);
-            let mut h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
+            let mut h = hierarchy(&geo, quads);
             h.budget.chunk = chunk;
             h.link_all(&crate::progress::Silent).unwrap();
             while h.sweep() > 1e-12 {}
