@@ -5,7 +5,7 @@
 //! image.png in the 3D view's place for a 3d scene without WebGL; fit a phone-width screen.
 //! Then, with WebGL through SwiftShader, solve the Cornell box and see it in the 3D view: the
 //! green wall on the left, the red on the right, and a drag turns it.
-//! Without chromedriver the test fails when `CI` is set and is skipped otherwise.
+//! Without chromium and chromedriver the test fails (`scripts/test` installs them).
 
 mod common;
 
@@ -54,7 +54,7 @@ where
 }
 
 /// A server on a free port and Chromium driven over WebDriver, started with `args` besides
-/// the usual ones; `None` when chromedriver or chromium is missing (a failure under `CI`).
+/// the usual ones; a failure when chromedriver or chromium is missing.
 struct Session {
     client: fantoccini::Client,
     base: String,
@@ -64,18 +64,15 @@ struct Session {
     _dir: tempfile::TempDir,
 }
 
-async fn open(args: &[&str]) -> Option<Session> {
+async fn open(args: &[&str]) -> Session {
     let (Some(chromedriver), Some(chromium)) = (
         find(&["chromedriver"]),
         find(&["chromium", "chromium-browser", "google-chrome"]),
     ) else {
-        if std::env::var_os("CI").is_some() {
-            panic!(
-                "chromedriver and chromium are required under CI (apt-get install chromium chromium-driver)"
-            );
-        }
-        eprintln!("skipped: chromedriver or chromium not installed");
-        return None;
+        panic!(
+            "the browser test needs chromium and chromedriver: run scripts/test, which installs \
+             them, or apt-get install chromium chromium-driver"
+        );
     };
 
     let dir = tempfile::tempdir().unwrap();
@@ -136,29 +133,26 @@ async fn open(args: &[&str]) -> Option<Session> {
             }
         }
     };
-    Some(Session {
+    Session {
         client,
         base,
         stop,
         server,
         _driver: driver,
         _dir: dir,
-    })
+    }
 }
 
 #[tokio::test(flavor = "multi_thread")]
 async fn the_page_solves_flatland_parallel_in_chromium() {
-    let Some(Session {
+    let Session {
         client,
         base,
         stop,
         server,
         _driver,
         _dir,
-    }) = open(&["--disable-gpu", "--disable-3d-apis"]).await
-    else {
-        return;
-    };
+    } = open(&["--disable-gpu", "--disable-3d-apis"]).await;
 
     client.goto(&format!("{base}/")).await.unwrap();
     let select = client
@@ -501,17 +495,14 @@ return { left: band(0.04, 0.18), right: band(0.82, 0.96), sum, lit: lit / (w * h
 #[tokio::test(flavor = "multi_thread")]
 async fn the_page_opens_the_obj_cornell_box_solves_it_and_turns_it_in_3d() {
     // WebGL without a GPU: SwiftShader through ANGLE
-    let Some(Session {
+    let Session {
         client,
         base,
         stop,
         server,
         _driver,
         _dir,
-    }) = open(&["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]).await
-    else {
-        return;
-    };
+    } = open(&["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]).await;
     client.goto(&format!("{base}/")).await.unwrap();
     client
         .wait()

@@ -6,8 +6,8 @@
 //! that meet at it); the exposure and camera are image.png's; the Cornell box's is under 2 MB.
 //!
 //! The validator is the npm package `gltf-validator`, run by node from the directory in
-//! `WAVRAD_GLTF_VALIDATOR` (default `.ci/tools`, where `.ci/run` installs it). Without it the
-//! validation is skipped with a message on a developer's machine and fails when `CI` is set.
+//! `WAVRAD_GLTF_VALIDATOR` (default `.ci/tools`, where `scripts/test` installs it). Without it
+//! the tests fail.
 
 mod support;
 
@@ -30,8 +30,8 @@ fn solve(name: &str) -> (Job, Outcome, Vec<u8>) {
     (job, outcome, glb)
 }
 
-/// The validator's report, or `None` when it is not installed (and `CI` is not set).
-fn validate(glb: &[u8], what: &str) -> Option<serde_json::Value> {
+/// The validator's report; a failure when it is not installed (`scripts/test` installs it).
+fn validate(glb: &[u8], what: &str) -> serde_json::Value {
     let dir = std::env::var_os("WAVRAD_GLTF_VALIDATOR")
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/.ci/tools")));
@@ -39,19 +39,13 @@ fn validate(glb: &[u8], what: &str) -> Option<serde_json::Value> {
         .join("node_modules/gltf-validator/package.json")
         .is_file()
         && Command::new("node").arg("--version").output().is_ok();
-    if !installed {
-        if std::env::var_os("CI").is_some() {
-            panic!(
-                "the glTF validator is required under CI: node and `npm install --prefix {} gltf-validator` (or WAVRAD_GLTF_VALIDATOR=DIR)",
-                dir.display()
-            );
-        }
-        eprintln!(
-            "skipped validating {what}: gltf-validator not installed in {}",
-            dir.display()
-        );
-        return None;
-    }
+    assert!(
+        installed,
+        "validating {what} needs node and the glTF validator in {}: run scripts/test, which \
+         installs them, or `npm install --prefix {} gltf-validator` (or WAVRAD_GLTF_VALIDATOR=DIR)",
+        dir.display(),
+        dir.display()
+    );
     let file = tempfile::NamedTempFile::new().unwrap();
     std::fs::write(file.path(), glb).unwrap();
     let out = Command::new("node")
@@ -68,7 +62,7 @@ fn validate(glb: &[u8], what: &str) -> Option<serde_json::Value> {
         "the validator failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    Some(serde_json::from_slice(&out.stdout).unwrap())
+    serde_json::from_slice(&out.stdout).unwrap()
 }
 
 /// Two sRGB pixels equal but for the rounding of a value within 1e-4 of a step's edge.
@@ -276,15 +270,14 @@ fn check(name: &str, max_bytes: usize) {
         "{name}: scene.glb {} bytes, {triangles_total} triangles, exposure {white}",
         glb.len()
     );
-    if let Some(report) = validate(&glb, name) {
-        let issues = &report["issues"];
-        assert_eq!(issues["numErrors"], 0, "{name}: {issues:#}");
-        assert_eq!(issues["numWarnings"], 0, "{name}: {issues:#}");
-        assert_eq!(
-            report["info"]["totalTriangleCount"].as_u64(),
-            Some(triangles_total as u64)
-        );
-    }
+    let report = validate(&glb, name);
+    let issues = &report["issues"];
+    assert_eq!(issues["numErrors"], 0, "{name}: {issues:#}");
+    assert_eq!(issues["numWarnings"], 0, "{name}: {issues:#}");
+    assert_eq!(
+        report["info"]["totalTriangleCount"].as_u64(),
+        Some(triangles_total as u64)
+    );
 }
 
 #[test]
@@ -372,9 +365,8 @@ fn a_mesh_scene_as_scene_glb() {
         }
     }
     assert!(meshes > 0);
-    if let Some(report) = validate(&glb, "tetrahedron-mesh") {
-        assert_eq!(report["issues"]["numErrors"], 0, "{:#}", report["issues"]);
-    }
+    let report = validate(&glb, "tetrahedron-mesh");
+    assert_eq!(report["issues"]["numErrors"], 0, "{:#}", report["issues"]);
 }
 
 /// The baked example `scenes/models/room.glb` (the README's furnished room, solved through the
@@ -385,10 +377,9 @@ fn a_mesh_scene_as_scene_glb() {
 fn the_baked_room_is_the_model_and_valid() {
     let models = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/models");
     let glb = std::fs::read(format!("{models}/room.glb")).unwrap();
-    if let Some(report) = validate(&glb, "room.glb") {
-        assert_eq!(report["issues"]["numErrors"], 0, "{report}");
-        assert_eq!(report["issues"]["numWarnings"], 0, "{report}");
-    }
+    let report = validate(&glb, "room.glb");
+    assert_eq!(report["issues"]["numErrors"], 0, "{report}");
+    assert_eq!(report["issues"]["numWarnings"], 0, "{report}");
     let imported =
         support::import_file(std::path::Path::new(&format!("{models}/room.obj"))).unwrap();
     let names = support::surface_names(&imported.document);

@@ -16,9 +16,7 @@ use std::time::{Duration, Instant};
 
 #[tokio::test(flavor = "multi_thread")]
 async fn three_processes_solve_fifty_jobs_each_once_and_serve_them_alike() {
-    let Some(url) = postgres::fresh_database().await else {
-        return;
-    };
+    let url = postgres::fresh_database().await;
     let servers = [
         start(&url, &[]).await,
         start(&url, &[]).await,
@@ -109,9 +107,7 @@ async fn three_processes_solve_fifty_jobs_each_once_and_serve_them_alike() {
 
 #[tokio::test(flavor = "multi_thread")]
 async fn the_same_document_posted_to_two_processes_at_once_is_one_job() {
-    let Some(url) = postgres::fresh_database().await else {
-        return;
-    };
+    let url = postgres::fresh_database().await;
     let (a, b) = (start(&url, &[]).await, start(&url, &[]).await);
     let http = reqwest::Client::new();
     for i in 0..8 {
@@ -146,9 +142,7 @@ async fn the_same_document_posted_to_two_processes_at_once_is_one_job() {
 /// did (its worker busy, the process that took the request reads the answer back).
 #[tokio::test(flavor = "multi_thread")]
 async fn synchronous_renders_answer_what_every_process_serves() {
-    let Some(url) = postgres::fresh_database().await else {
-        return;
-    };
+    let url = postgres::fresh_database().await;
     let http = reqwest::Client::new();
     let render = |base: String, name: String, json: bool| {
         let http = http.clone();
@@ -213,9 +207,7 @@ async fn synchronous_renders_answer_what_every_process_serves() {
 
 #[tokio::test(flavor = "multi_thread")]
 async fn sse_and_delete_through_one_process_reach_a_solve_in_another() {
-    let Some(url) = postgres::fresh_database().await else {
-        return;
-    };
+    let url = postgres::fresh_database().await;
     let servers = [start(&url, &[]).await, start(&url, &[]).await];
     let http = reqwest::Client::new();
     let db = postgres::connect(&url).await;
@@ -308,9 +300,7 @@ async fn sse_and_delete_through_one_process_reach_a_solve_in_another() {
 
 #[tokio::test(flavor = "multi_thread")]
 async fn a_killed_process_loses_its_job_to_another_which_finishes_it() {
-    let Some(url) = postgres::fresh_database().await else {
-        return;
-    };
+    let url = postgres::fresh_database().await;
     let mut servers = vec![start(&url, &[]).await, start(&url, &[]).await];
     let http = reqwest::Client::new();
     let db = postgres::connect(&url).await;
@@ -367,9 +357,7 @@ async fn a_killed_process_loses_its_job_to_another_which_finishes_it() {
 
 #[tokio::test(flavor = "multi_thread")]
 async fn the_queue_is_full_for_every_process_when_the_shared_queue_is() {
-    let Some(url) = postgres::fresh_database().await else {
-        return;
-    };
+    let url = postgres::fresh_database().await;
     // one worker per process: a long job occupies each, then two more wait
     let a = start(&url, &["--queue-capacity", "2"]).await;
     let b = start(&url, &["--queue-capacity", "2"]).await;

@@ -1,31 +1,25 @@
 //! The PostgreSQL the tests use: `WAVRAD_TEST_DATABASE_URL` (a throwaway cluster that
-//! `.ci/postgres` starts; `.ci/run` does). Each test gets a database of its own. Without the
-//! variable the tests fail when `CI` is set, and otherwise say why they do not run and pass.
+//! `.ci/postgres` starts; `scripts/test` does). Each test gets a database of its own. Without
+//! the variable the tests fail.
 #![allow(dead_code)]
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// The cluster's URL, or `None` (with a message) outside CI when it is not configured.
-pub fn cluster() -> Option<String> {
+/// The cluster's URL; a failure when it is not configured.
+pub fn cluster() -> String {
     match std::env::var("WAVRAD_TEST_DATABASE_URL") {
-        Ok(url) if !url.trim().is_empty() => Some(url),
-        _ if std::env::var_os("CI").is_some() => panic!(
-            "WAVRAD_TEST_DATABASE_URL is not set, and CI is: the PostgreSQL tests must run \
-             (.ci/run starts a cluster with .ci/postgres)"
+        Ok(url) if !url.trim().is_empty() => url,
+        _ => panic!(
+            "the PostgreSQL tests need a cluster in WAVRAD_TEST_DATABASE_URL: run scripts/test, \
+             which starts one, or eval \"$(.ci/postgres)\" first"
         ),
-        _ => {
-            eprintln!(
-                "PostgreSQL tests NOT RUN: set WAVRAD_TEST_DATABASE_URL (eval \"$(.ci/postgres)\")"
-            );
-            None
-        }
     }
 }
 
 /// A new, empty database on the cluster: its URL.
-pub async fn fresh_database() -> Option<String> {
+pub async fn fresh_database() -> String {
     static N: AtomicUsize = AtomicUsize::new(0);
-    let cluster = cluster()?;
+    let cluster = cluster();
     let name = format!(
         "wavrad_test_{}_{}_{}",
         std::process::id(),
@@ -44,7 +38,7 @@ pub async fn fresh_database() -> Option<String> {
         .await
         .unwrap();
     let (base, _) = cluster.rsplit_once('/').expect("a URL ending in /database");
-    Some(format!("{base}/{name}"))
+    format!("{base}/{name}")
 }
 
 /// A plain connection to `url` (to look at what the servers wrote).
