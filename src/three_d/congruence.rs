@@ -199,13 +199,21 @@ impl Labels {
     }
 
     /// The class's block in this pair's labels.
+    #[cfg(test)]
     #[allow(clippy::wrong_self_convention)]
     pub(super) fn from_class(&self, class: &[f64], k: usize) -> Vec<f64> {
         let mut out = vec![0.0; class.len()];
+        self.from_class_into(class, k, &mut out);
+        out
+    }
+
+    /// The class's block in this pair's labels, into `out` (zero where no entry maps).
+    #[allow(clippy::wrong_self_convention)]
+    pub(super) fn from_class_into(&self, class: &[f64], k: usize, out: &mut [f64]) {
+        out.iter_mut().for_each(|x| *x = 0.0);
         for (c, own, sign) in self.entries(k) {
             out[own] = sign * class[c];
         }
-        out
     }
 }
 

@@ -76,7 +76,7 @@ struct At {
 /// A link of either kind.
 #[derive(Debug, Clone, Copy)]
 enum Any<'a> {
-    Element(&'a super::refine::Link),
+    Element(&'a super::refine::Link, &'a [f64]),
     Cluster(&'a ClusterLink),
 }
 
@@ -91,7 +91,7 @@ impl Hierarchy<'_> {
         let touch: rustc_hash::FxHashSet<(usize, usize)> = left_out.iter().copied().collect();
         let link = |i: usize| {
             if i < self.links.len() {
-                Any::Element(&self.links[i])
+                Any::Element(&self.links.ends()[i], self.links.block(i))
             } else {
                 Any::Cluster(&self.cluster_links[i - self.links.len()])
             }
@@ -110,7 +110,7 @@ impl Hierarchy<'_> {
             .into_par_iter()
             .map(|i| {
                 let (r, s) = match link(i) {
-                    Any::Element(l) => (l.recv, l.src),
+                    Any::Element(l, _) => (l.recv, l.src),
                     Any::Cluster(l) => (l.recv, l.src),
                 };
                 let (gr, gs) = (group(r), group(s));
@@ -158,14 +158,14 @@ impl Hierarchy<'_> {
                 }
                 let l = link(pick);
                 let (r, s) = match l {
-                    Any::Element(l) => (l.recv, l.src),
+                    Any::Element(l, _) => (l.recv, l.src),
                     Any::Cluster(l) => (l.recv, l.src),
                 };
                 let a = self.point_of(r, &mut rng);
                 let b = self.point_of(s, &mut rng);
                 let k = self.kernel(&a, &b);
                 let approx = match l {
-                    Any::Element(l) => self.block_kernel(l, &a, &b),
+                    Any::Element(l, block) => self.block_kernel(l, block, &a, &b),
                     Any::Cluster(l) => self.cluster_link_kernel(l, a.member, b.member),
                 };
                 let scale = weights[pick].0 / p;
@@ -201,12 +201,12 @@ impl Hierarchy<'_> {
     /// 1 / √A), the point-to-point kernel between the ends' centres for a cluster link.
     fn mean_kernel(&self, l: Any) -> f64 {
         match l {
-            Any::Element(l) => {
+            Any::Element(l, block) => {
                 let (r, s) = (
                     &self.elements[l.recv as usize],
                     &self.elements[l.src as usize],
                 );
-                l.block[0].abs() / (r.area * s.area).sqrt()
+                block[0].abs() / (r.area * s.area).sqrt()
             }
             Any::Cluster(l) => {
                 let d = norm(sub(self.centre_of(l.recv), self.centre_of(l.src)));
@@ -252,12 +252,12 @@ impl Hierarchy<'_> {
     }
 
     /// An element link's kernel at (x, y): Σ_ab T_ab ψ_a(x) ψ_b(y).
-    fn block_kernel(&self, l: &super::refine::Link, a: &At, b: &At) -> f64 {
+    fn block_kernel(&self, l: &super::refine::Link, block: &[f64], a: &At, b: &At) -> f64 {
         let kk = self.k * self.k;
         let (mut psi_a, mut psi_b) = ([0.0; 16], [0.0; 16]);
         self.functions(l.recv, a.st, &mut psi_a[..kk]);
         self.functions(l.src, b.st, &mut psi_b[..kk]);
-        l.block
+        block
             .chunks_exact(kk)
             .zip(&psi_a[..kk])
             .map(|(row, fa)| {
@@ -414,11 +414,7 @@ mod tests {
         h.link_all(&Silent).unwrap();
         while h.sweep() > 1e-6 {}
         h.rerefine(&Silent).unwrap();
-        let kept = h
-            .links
-            .iter()
-            .map(|l| l.block.iter().map(|v| v * v).sum::<f64>())
-            .sum();
+        let kept = h.links.coefficients().iter().map(|v| v * v).sum();
         (h, kept)
     }
 

@@ -30,6 +30,7 @@
 
 mod clustered;
 mod kernel_error;
+mod links;
 mod refine;
 mod sizing;
 mod tolerance;
@@ -51,8 +52,9 @@ use crate::three_d::geometry::Piece;
 use crate::three_d::projection::{piece_emission, Geometry};
 use crate::three_d::transfer::Accuracy;
 use crate::three_d::visibility::Seen;
+use links::Links;
 use rayon::prelude::*;
-use refine::{Factors, Link};
+use refine::Factors;
 use sizing::Sizing;
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -102,7 +104,7 @@ struct Hierarchy<'g> {
     /// The lines where other surfaces stand on each surface ([`crate::three_d::cover::contacts`]).
     contacts: Vec<Vec<[[f64; 2]; 2]>>,
     elements: Vec<Element>,
-    links: Vec<Link>,
+    links: Links,
     /// The cluster tree over the patches, where the refinement starts ([`clustered`]).
     clusters: Clusters,
     /// The patches under the cluster tree, in its order ([`clustered::Member`]).
@@ -199,7 +201,7 @@ impl<'g> Hierarchy<'g> {
                 .map(|i| crate::three_d::cover::contacts(&all, i))
                 .collect(),
             elements,
-            links: Vec::new(),
+            links: Links::new(k.pow(4)),
             clusters,
             members,
             cluster_links: Vec::new(),
@@ -254,8 +256,10 @@ impl<'g> Hierarchy<'g> {
         }
         let mut pending = Vec::new();
         self.refine_all(pairs, &mut pending, progress)?;
-        self.links = self.make_links(&pending, progress)?;
-        self.sort_links();
+        let mut links = Links::new(self.k.pow(4));
+        self.make_links(pending, &mut links, progress)?;
+        self.links = links;
+        self.links.sort();
         Ok(())
     }
 
@@ -329,13 +333,15 @@ impl<'g> Hierarchy<'g> {
         // peak memory of a 10⁵-triangle job
         let mut keep = std::mem::take(&mut self.links);
         let mut again = Vec::new();
-        let outgrown: Vec<Link> = keep
-            .extract_if(.., |l| self.outgrown(l.recv, l.src, l.factors))
-            .collect();
-        again.extend(outgrown.iter().map(|l| (l.recv, l.src)));
+        let outgrown = keep.extract_if(|l| self.outgrown(l.recv, l.src, l.factors));
+        again.extend(outgrown.ends().iter().map(|l| (l.recv, l.src)));
         let lit = self.relight(&mut keep);
-        let mut blocks: std::collections::HashMap<(u32, u32), Link> =
-            outgrown.into_iter().map(|l| ((l.recv, l.src), l)).collect();
+        let mut blocks: std::collections::HashMap<(u32, u32), usize> = outgrown
+            .ends()
+            .iter()
+            .enumerate()
+            .map(|(i, l)| ((l.recv, l.src), i))
+            .collect();
         let mut reopened = 0;
         let mut hidden = std::mem::take(&mut self.hidden);
         hidden.retain(|&(r, s, x)| {
@@ -375,17 +381,18 @@ impl<'g> Hierarchy<'g> {
         // a pair may come back unrefined (its estimate changed): keep its block
         let mut refined = blocks.len() + reopened;
         pending.retain(|p| match blocks.remove(&(p.0, p.1)) {
-            Some(l) => {
+            Some(i) => {
                 refined -= 1;
-                keep.push(l);
+                keep.push(outgrown.ends()[i], outgrown.block(i));
                 false
             }
             None => true,
         });
+        drop(outgrown);
         pending.extend(lit);
-        keep.extend(self.make_links(&pending, progress)?);
+        self.make_links(pending, &mut keep, progress)?;
         self.links = keep;
-        self.sort_links();
+        self.links.sort();
         Ok(refined)
     }
 
@@ -393,11 +400,10 @@ impl<'g> Hierarchy<'g> {
     /// its visible fraction again from its own grid of fresh rays, as the share of the light
     /// ([`refine::Factors::unlit`]), and is returned to be linked with it (or kept as hidden
     /// when none of those rays gets through).
-    fn relight(&mut self, links: &mut Vec<Link>) -> Vec<(u32, u32, Factors, Seen)> {
-        let unlit: Vec<Link> = links
-            .extract_if(.., |l| l.factors.unlit.is_some())
-            .collect();
+    fn relight(&mut self, links: &mut Links) -> Vec<(u32, u32, Factors, Seen)> {
+        let unlit = links.extract_if(|l| l.factors.unlit.is_some());
         let relit: Vec<_> = unlit
+            .ends()
             .par_iter()
             .map(|l| {
                 let (mut x, mut rays) = (l.factors, 0);
@@ -416,10 +422,6 @@ impl<'g> Hierarchy<'g> {
             }
         }
         lit
-    }
-
-    fn sort_links(&mut self) {
-        self.links.sort_by_key(|l| (l.recv, l.src));
     }
 
     /// One Jacobi sweep: gather over the links, then push-pull. Returns the relative change
@@ -447,9 +449,9 @@ impl<'g> Hierarchy<'g> {
             .into_par_iter()
             .map(|(r, run)| {
                 let mut h = vec![[0.0; 3]; kk];
-                for l in &self.links[run] {
+                for (l, block) in self.links.run(run) {
                     let b = &all_b[l.src as usize * kk..(l.src as usize + 1) * kk];
-                    gather(&mut h, &l.block, b);
+                    gather(&mut h, block, b);
                 }
                 (r, h)
             })
@@ -494,11 +496,12 @@ impl<'g> Hierarchy<'g> {
 
     /// Each receiver with its run of links (the links are sorted by receiver).
     fn receiver_runs(&self) -> Vec<(u32, std::ops::Range<usize>)> {
+        let links = self.links.ends();
         let mut runs = Vec::new();
         let mut start = 0;
-        for i in 1..=self.links.len() {
-            if i == self.links.len() || self.links[i].recv != self.links[start].recv {
-                runs.push((self.links[start].recv, start..i));
+        for i in 1..=links.len() {
+            if i == links.len() || links[i].recv != links[start].recv {
+                runs.push((links[start].recv, start..i));
                 start = i;
             }
         }
@@ -541,14 +544,14 @@ impl<'g> Hierarchy<'g> {
                 .with_min_len(16)
                 .map(|&r| {
                     let mut h = this.elements[r as usize].h.clone();
-                    for l in &this.links[runs[r as usize].clone()] {
+                    for (l, block) in this.links.run(runs[r as usize].clone()) {
                         let src = &this.elements[l.src as usize];
                         if matches!(src.exposure, Exposure::Partial(_)) {
                             let mut sent = [[0.0; 3]; MAX_KK];
                             src.sent(&mut sent[..kk]);
-                            gather(&mut h, &l.block, &sent[..kk]);
+                            gather(&mut h, block, &sent[..kk]);
                         } else {
-                            gather(&mut h, &l.block, &src.b);
+                            gather(&mut h, block, &src.b);
                         }
                     }
                     h
@@ -694,12 +697,12 @@ impl<'g> Hierarchy<'g> {
             let lo = start[e.piece.surface] + morton(cs, ct);
             lo..lo + (1usize << (2 * shift))
         };
-        let blocks = self.links.iter().map(|l| {
+        let blocks = self.links.iter().map(|(l, block)| {
             let (r, s) = (
                 &self.elements[l.recv as usize],
                 &self.elements[l.src as usize],
             );
-            let v = l.block[0].abs() / (r.area * s.area).sqrt();
+            let v = block[0].abs() / (r.area * s.area).sqrt();
             (run(r), run(s), v)
         });
         crate::methods::compress::block_picture(start[self.quads.len()], max_side, blocks)
@@ -949,8 +952,9 @@ pub(crate) fn solve(
     let (kept_entries, magnitudes) = crate::methods::compress::ranked(
         || {
             h.links
+                .coefficients()
                 .iter()
-                .flat_map(|l| l.block.iter().map(|v| v.abs()))
+                .map(|v| v.abs())
                 .filter(|v| *v > 0.0)
         },
         job.output.coefficients,
@@ -961,10 +965,10 @@ pub(crate) fn solve(
     let surfaces = h.quads.len();
     let sample = kernel_error::sampled_on(h.geo.quads.iter().any(|q| q.tri), quads.len());
     let mut kept_squares = vec![0.0; if sample { 0 } else { surfaces * surfaces }];
-    for l in h.links.iter().filter(|_| !sample) {
+    for (l, block) in h.links.iter().filter(|_| !sample) {
         let (r, s) = (&h.elements[l.recv as usize], &h.elements[l.src as usize]);
         kept_squares[r.piece.surface * surfaces + s.piece.surface] +=
-            l.block.iter().map(|v| v * v).sum::<f64>();
+            block.iter().map(|v| v * v).sum::<f64>();
     }
     // eq. (5) over the pairs of surfaces needs their blocks' squares, which cluster links do
     // not have, and costs s² quadratures: with triangles or many surfaces it is sampled
@@ -1150,6 +1154,7 @@ mod tests {
         h.link_all(&crate::progress::Silent).unwrap();
         let unlit: Vec<(u32, u32, u8)> = h
             .links
+            .ends()
             .iter()
             .filter_map(|l| l.factors.unlit.map(|n| (l.recv, l.src, n)))
             .collect();
@@ -1160,7 +1165,7 @@ mod tests {
         let mut kept = std::mem::take(&mut h.links);
         let lit = h.relight(&mut kept);
         h.links = kept;
-        assert!(h.links.iter().all(|l| l.factors.unlit.is_none()));
+        assert!(h.links.ends().iter().all(|l| l.factors.unlit.is_none()));
         assert_eq!(links - h.links.len(), unlit.len());
         assert_eq!(lit.len() + h.hidden.len() - hidden, unlit.len());
         let mut differ = 0;

@@ -41,6 +41,7 @@
 //! through it, and take the share of the light from fresh rays after it.
 
 use super::clustered::{ClusterLink, ClusterVerdict};
+use super::links::Links;
 use super::tree::{push, Element, NONE};
 use super::{Hierarchy, Overrun};
 use crate::progress::{Cancelled, Progress};
@@ -104,7 +105,7 @@ pub(super) fn receiver_first(order: usize) -> u32 {
 }
 
 /// The geometric part of the oracle's estimate for one pair.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Factors {
     /// F̂: the largest point-to-piece form factor from the receiver to the source.
     f: f64,
@@ -135,15 +136,14 @@ enum Verdict {
     Hidden(Factors),
 }
 
-/// An interaction from `src` to `recv`.
-#[derive(Debug, Clone)]
+/// An interaction from `src` to `recv`; its k² × k² block (row = receiver coefficient, the
+/// visible fraction in it) is kept beside it in [`Links`].
+#[derive(Debug, Clone, Copy)]
 pub(super) struct Link {
     pub(super) recv: u32,
     pub(super) src: u32,
     /// The oracle's geometric factors, to judge the link again as B changes.
     pub(super) factors: Factors,
-    /// k² × k², row = receiver coefficient (the visible fraction is in it).
-    pub(super) block: Vec<f64>,
 }
 
 impl Hierarchy<'_> {
@@ -745,12 +745,16 @@ impl Hierarchy<'_> {
 
     /// Integrates the blocks of accepted pairs, in parallel: one per class of congruent pairs
     /// ([`crate::three_d::congruence`]; a pair and its reverse are congruent, T_ba = T_abᵀ, since the
-    /// kernel is symmetric and the bases orthonormal), mapped to the others.
+    /// kernel is symmetric and the bases orthonormal), mapped to the others, and appends the
+    /// links to `links` in the order of `pending`. The pairs are taken a chunk at a time and
+    /// let go as their links are made: the accepted pairs, with their visible fractions, and
+    /// the links they become held together were the peak of a job.
     pub(super) fn make_links(
         &self,
-        pending: &[(u32, u32, Factors, Seen)],
+        mut pending: Vec<(u32, u32, Factors, Seen)>,
+        links: &mut Links,
         progress: &dyn Progress,
-    ) -> Result<Vec<Link>, Cancelled> {
+    ) -> Result<(), Cancelled> {
         let k = self.k;
         let piece = |e: u32| self.elements[e as usize].piece;
         // the class of each pair, a chunk of pairs at a time: a class's key (144 bytes) lives
@@ -758,66 +762,71 @@ impl Hierarchy<'_> {
         // congruence, kept for every pair, was a third of a 10⁵-triangle job's peak)
         const CHUNK: usize = 1 << 16;
         let mut index = rustc_hash::FxHashMap::default();
-        let mut firsts: Vec<usize> = Vec::new();
-        let mut mapped: Vec<(u32, Labels)> = Vec::with_capacity(pending.len());
-        for start in (0..pending.len()).step_by(CHUNK) {
-            let chunk = &pending[start..(start + CHUNK).min(pending.len())];
+        let mut blocks: Vec<Vec<f64>> = Vec::new();
+        let steps = Steps::new(k);
+        links.reserve(pending.len());
+        // the chunks in order, taken from the end of the reversed list, which then gives
+        // their memory back
+        pending.reverse();
+        while !pending.is_empty() {
+            let mut chunk = pending.split_off(pending.len().saturating_sub(CHUNK));
+            pending.shrink_to_fit();
+            chunk.reverse();
             let classes: Vec<Congruence> = chunk
                 .par_iter()
                 .map(|&(r, s, _, _)| {
                     Congruence::of(&self.geo.quads, piece(r), piece(s), self.unit, false)
                 })
                 .collect();
-            for (i, c) in classes.iter().enumerate() {
-                let slot = *index.entry(c.key).or_insert_with(|| {
-                    firsts.push(start + i);
-                    firsts.len() as u32 - 1
-                });
-                mapped.push((slot, c.labels));
-            }
-        }
-        drop(index);
-        let blocks: Vec<Vec<f64>> = firsts
-            .par_iter()
-            .map(|&i| {
-                progress.check()?;
-                let (a, b) = (pending[i].0, pending[i].1);
-                let mut block = vec![0.0; k.pow(4)];
-                let evaluations = transfer::block(
-                    &self.geo.quads,
-                    piece(a),
-                    piece(b),
-                    Integrand::Galerkin { k },
-                    self.accuracy,
-                    &mut block,
-                );
-                self.evaluations
-                    .fetch_add(evaluations, std::sync::atomic::Ordering::Relaxed);
-                Ok(mapped[i].1.to_class(&block, k))
-            })
-            .collect::<Result<_, Cancelled>>()?;
-        let steps = Steps::new(k);
-        Ok(pending
-            .iter()
-            .zip(mapped)
-            .map(|(&(recv, src, factors, seen), (slot, labels))| {
-                let mut block = labels.from_class(&blocks[slot as usize], k);
+            let mut firsts: Vec<usize> = Vec::new();
+            let mapped: Vec<(u32, Labels)> = classes
+                .iter()
+                .enumerate()
+                .map(|(i, c)| {
+                    let slot = *index.entry(c.key).or_insert_with(|| {
+                        firsts.push(i);
+                        (blocks.len() + firsts.len()) as u32 - 1
+                    });
+                    (slot, c.labels)
+                })
+                .collect();
+            drop(classes);
+            let new: Vec<Vec<f64>> = firsts
+                .par_iter()
+                .map(|&i| {
+                    progress.check()?;
+                    let (a, b) = (chunk[i].0, chunk[i].1);
+                    let mut block = vec![0.0; k.pow(4)];
+                    let evaluations = transfer::block(
+                        &self.geo.quads,
+                        piece(a),
+                        piece(b),
+                        Integrand::Galerkin { k },
+                        self.accuracy,
+                        &mut block,
+                    );
+                    self.evaluations
+                        .fetch_add(evaluations, std::sync::atomic::Ordering::Relaxed);
+                    Ok(mapped[i].1.to_class(&block, k))
+                })
+                .collect::<Result<_, Cancelled>>()?;
+            blocks.extend(new);
+            links.extend_with(chunk.len(), |i, block| {
+                let (recv, src, factors, seen) = chunk[i];
+                let (slot, labels) = &mapped[i];
+                labels.from_class_into(&blocks[*slot as usize], k, block);
                 match &self.elements[recv as usize].exposure {
                     // unless the source sends nothing to the covered part: then the block
                     // already holds the moments of the exposed part
                     Exposure::Partial(p) if self.sends_to_covered(recv, src) => {
-                        seen.weigh_masked(p, k, &mut block)
+                        seen.weigh_masked(p, k, block)
                     }
-                    _ => seen.weigh(&steps, &mut block),
+                    _ => seen.weigh(&steps, block),
                 }
-                Link {
-                    recv,
-                    src,
-                    factors,
-                    block,
-                }
-            })
-            .collect())
+                Link { recv, src, factors }
+            });
+        }
+        Ok(())
     }
 }
 
