@@ -663,14 +663,15 @@ fn results_carry_eq6_timings_and_the_hierarchy() {
 #[test]
 fn a_hierarchy_too_large_for_memory_stops_with_a_clear_error() {
     // order 6 (2401 numbers per link block) at ε = 1e-6 would take many GiB of links: the
-    // refinement stops at its budget (55 k such links in 1 GiB) and says what to change
+    // refinement stops at its budget (111 k such links in 1 GiB) and says what to change
     let mut doc = scene_file("cornell-box");
     doc["solver"] =
         json!({ "method": "hierarchical", "order": 6, "resolution": 256, "epsilon": 1e-6 });
     match job::run(&job(doc), &Silent) {
         Err(e @ wavrad::job::JobError::TooLarge { order: 6, links }) => {
-            // the budget: 1 GiB of 2401-number blocks
-            assert!((50_000..60_000).contains(&links), "{links}");
+            // the budget: 1 GiB of 2401-number blocks in single precision (9604 bytes) and
+            // their links' ends and factors (20 bytes): 2³⁰ / 9624
+            assert_eq!(links, (1 << 30) / (4 * 2401 + 20), "{links}");
             let m = e.to_string();
             assert!(m.contains("links") && m.contains("solver.epsilon"), "{m}")
         }

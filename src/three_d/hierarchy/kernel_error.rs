@@ -76,7 +76,7 @@ struct At {
 /// A link of either kind.
 #[derive(Debug, Clone, Copy)]
 enum Any<'a> {
-    Element(&'a super::refine::Link, &'a [f64]),
+    Element(&'a super::refine::Link, &'a [f32]),
     Cluster(&'a ClusterLink),
 }
 
@@ -206,7 +206,7 @@ impl Hierarchy<'_> {
                     &self.elements[l.recv as usize],
                     &self.elements[l.src as usize],
                 );
-                block[0].abs() / (r.area * s.area).sqrt()
+                f64::from(block[0].abs()) / (r.area * s.area).sqrt()
             }
             Any::Cluster(l) => {
                 let d = norm(sub(self.centre_of(l.recv), self.centre_of(l.src)));
@@ -252,7 +252,7 @@ impl Hierarchy<'_> {
     }
 
     /// An element link's kernel at (x, y): Σ_ab T_ab ψ_a(x) ψ_b(y).
-    fn block_kernel(&self, l: &super::refine::Link, block: &[f64], a: &At, b: &At) -> f64 {
+    fn block_kernel(&self, l: &super::refine::Link, block: &[f32], a: &At, b: &At) -> f64 {
         let kk = self.k * self.k;
         let (mut psi_a, mut psi_b) = ([0.0; 16], [0.0; 16]);
         self.functions(l.recv, a.st, &mut psi_a[..kk]);
@@ -264,7 +264,7 @@ impl Hierarchy<'_> {
                 fa * row
                     .iter()
                     .zip(&psi_b[..kk])
-                    .map(|(t, f)| t * f)
+                    .map(|(&t, f)| f64::from(t) * f)
                     .sum::<f64>()
             })
             .sum()
@@ -414,7 +414,12 @@ mod tests {
         h.link_all(&Silent).unwrap();
         while h.sweep() > 1e-6 {}
         h.rerefine(&Silent).unwrap();
-        let kept = h.links.coefficients().iter().map(|v| v * v).sum();
+        let kept = h
+            .links
+            .coefficients()
+            .iter()
+            .map(|&v| f64::from(v).powi(2))
+            .sum();
         (h, kept)
     }
 

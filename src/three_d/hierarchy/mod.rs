@@ -54,7 +54,7 @@ use crate::three_d::transfer::Accuracy;
 use crate::three_d::visibility::Seen;
 use links::Links;
 use rayon::prelude::*;
-use refine::Factors;
+use refine::{Factors, Link};
 use sizing::Sizing;
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -702,7 +702,7 @@ impl<'g> Hierarchy<'g> {
                 &self.elements[l.recv as usize],
                 &self.elements[l.src as usize],
             );
-            let v = block[0].abs() / (r.area * s.area).sqrt();
+            let v = f64::from(block[0].abs()) / (r.area * s.area).sqrt();
             (run(r), run(s), v)
         });
         crate::methods::compress::block_picture(start[self.quads.len()], max_side, blocks)
@@ -728,9 +728,10 @@ impl<'g> Hierarchy<'g> {
 
 /// Adds a link's transfer to the receiver's H: h += T b, T the link's k² × k² block (rows by
 /// receiver coefficient) and b the source's coefficients.
-fn gather(h: &mut [Rgb], block: &[f64], b: &[Rgb]) {
+fn gather(h: &mut [Rgb], block: &[f32], b: &[Rgb]) {
     for (hr, row) in h.iter_mut().zip(block.chunks_exact(b.len())) {
-        for (v, bc) in row.iter().zip(b) {
+        for (&v, bc) in row.iter().zip(b) {
+            let v = f64::from(v);
             for ch in 0..3 {
                 hr[ch] += v * bc[ch];
             }
@@ -759,27 +760,29 @@ const LINK_BYTES: usize = 1 << 30;
 const FRONTIER_BYTES: usize = 1 << 31;
 
 /// The most pairs of a level judged at once ([`Budget::chunk`]).
-const CHUNK: usize = 1 << 18;
+const CHUNK: usize = 1 << 16;
 
 /// The most the refinement may hold, from the memory it allows itself.
 #[derive(Debug, Clone, Copy)]
 struct Budget {
-    /// The links made: a block of k⁴ numbers each, within [`LINK_BYTES`].
+    /// The links made: a block of k⁴ numbers (single precision, [`Links`]) and the link's
+    /// ends and factors each, within [`LINK_BYTES`].
     links: usize,
     /// The pairs of one level's frontier, [`refine::PAIR_BYTES`] each, within
     /// [`FRONTIER_BYTES`].
     pairs: usize,
-    /// The pairs judged at once. A pair's verdict, class key and slot take a few hundred
-    /// bytes: a frontier of millions (a cluster tree of 10⁶ triangles linked to itself) is
-    /// judged in chunks of this many, in order, so that those stay within tens of MB. A
-    /// frontier no larger is judged in one.
+    /// The pairs judged at once. A pair's verdict and slot take about a hundred bytes: a
+    /// frontier of millions (a cluster tree of 10⁶ triangles linked to itself) is judged in
+    /// chunks of this many, in order, so that those stay within a few MB. A frontier no larger
+    /// is judged in one.
     chunk: usize,
 }
 
 impl Budget {
     fn of_order(order: usize) -> Self {
         Budget {
-            links: LINK_BYTES / (8 * (order + 1).pow(4) + 64),
+            links: LINK_BYTES
+                / (std::mem::size_of::<f32>() * (order + 1).pow(4) + std::mem::size_of::<Link>()),
             pairs: FRONTIER_BYTES / refine::PAIR_BYTES,
             chunk: CHUNK,
         }
@@ -954,7 +957,7 @@ pub(crate) fn solve(
             h.links
                 .coefficients()
                 .iter()
-                .map(|v| v.abs())
+                .map(|&v| f64::from(v.abs()))
                 .filter(|v| *v > 0.0)
         },
         job.output.coefficients,
@@ -968,7 +971,7 @@ pub(crate) fn solve(
     for (l, block) in h.links.iter().filter(|_| !sample) {
         let (r, s) = (&h.elements[l.recv as usize], &h.elements[l.src as usize]);
         kept_squares[r.piece.surface * surfaces + s.piece.surface] +=
-            block.iter().map(|v| v * v).sum::<f64>();
+            block.iter().map(|&v| f64::from(v).powi(2)).sum::<f64>();
     }
     // eq. (5) over the pairs of surfaces needs their blocks' squares, which cluster links do
     // not have, and costs s² quadratures: with triangles or many surfaces it is sampled

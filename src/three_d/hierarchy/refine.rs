@@ -104,13 +104,14 @@ pub(super) fn receiver_first(order: usize) -> u32 {
     3u32.saturating_sub((order + 1).ilog2())
 }
 
-/// The geometric part of the oracle's estimate for one pair.
+/// The geometric part of the oracle's estimate for one pair (in single precision: every link
+/// keeps it, and an estimate needs no more).
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Factors {
     /// F̂: the largest point-to-piece form factor from the receiver to the source.
-    f: f64,
+    f: f32,
     /// (d / (d + dist))^(m+1), or 1 when the pair is partly visible.
-    smooth: f64,
+    smooth: f32,
     /// Whether the receiver touches a contact line and something may come between it and
     /// the source ([`CONTACT_SHARE`]).
     pub(super) contact: bool,
@@ -443,8 +444,8 @@ impl Hierarchy<'_> {
                 .between(self.elements[r as usize].piece.surface, es.piece.surface)
         };
         (
-            w * rho * es.brightness() * x.f * x.smooth,
-            w * rho * es.detail * x.f,
+            w * rho * es.brightness() * f64::from(x.f) * f64::from(x.smooth),
+            w * rho * es.detail * f64::from(x.f),
         )
     }
 
@@ -461,8 +462,8 @@ impl Hierarchy<'_> {
                 .map(|source| Verdict::Split { source })
         };
         let unsure = Factors {
-            f,
-            smooth,
+            f: f as f32,
+            smooth: smooth as f32,
             contact: false,
             unlit: None,
         };
@@ -486,7 +487,7 @@ impl Hierarchy<'_> {
                 r,
                 s,
                 Factors {
-                    f,
+                    f: f as f32,
                     smooth: 1.0,
                     contact,
                     unlit: None,
@@ -530,13 +531,13 @@ impl Hierarchy<'_> {
         // big pair's light may pass through a gap none of them found, but no more of it than
         // the rays' bound on what they missed ([`unseen_bound`])
         let x = Factors {
-            f,
+            f: f as f32,
             smooth: if v.whole <= 0.0 && !contact {
-                unseen_bound(rays)
+                unseen_bound(rays) as f32
             } else if v.whole < 1.0 || contact {
                 1.0
             } else {
-                smooth
+                smooth as f32
             },
             contact,
             unlit: None,
@@ -627,11 +628,9 @@ impl Hierarchy<'_> {
         // the estimate depends on the pair's shape only: once per class of congruent
         // pairs (the estimate's points are symmetric on the receiver)
         let piece = |e: u32| self.elements[e as usize].piece;
-        let classes: Vec<_> = pairs
-            .par_iter()
-            .map(|&(r, s)| Congruence::of(&self.geo.quads, piece(r), piece(s), self.unit, true).key)
-            .collect();
-        let (unique, slots) = first_of_each(classes.into_iter().zip(pairs.iter().copied()));
+        let (unique, slots) = first_of_each(&pairs, |&(r, s)| {
+            Congruence::of(&self.geo.quads, piece(r), piece(s), self.unit, true).key
+        });
         let estimates: Vec<(f64, f64)> = unique
             .par_iter()
             .map(|&(r, s)| self.estimate(r, s))
@@ -831,19 +830,25 @@ impl Hierarchy<'_> {
 }
 
 /// The first item of each key, in order, and for every item the index of its key's first.
-fn first_of_each<K: std::hash::Hash + Eq, T>(
-    items: impl Iterator<Item = (K, T)>,
-) -> (Vec<T>, Vec<usize>) {
+/// The keys are computed in parallel a few thousand at a time: a key of a congruence class is
+/// 144 bytes, and a whole chunk of the frontier's keys at once (2¹⁸) was 37 MB.
+fn first_of_each<K, T>(items: &[T], key: impl Fn(&T) -> K + Sync) -> (Vec<T>, Vec<usize>)
+where
+    K: std::hash::Hash + Eq + Send,
+    T: Copy + Sync,
+{
     let mut index = rustc_hash::FxHashMap::default();
     let mut firsts = Vec::new();
-    let slots = items
-        .map(|(key, item)| {
-            *index.entry(key).or_insert_with(|| {
+    let mut slots = Vec::with_capacity(items.len());
+    for part in items.chunks(1 << 12) {
+        let keys: Vec<K> = part.par_iter().map(&key).collect();
+        for (key, &item) in keys.into_iter().zip(part) {
+            slots.push(*index.entry(key).or_insert_with(|| {
                 firsts.push(item);
                 firsts.len() - 1
-            })
-        })
-        .collect();
+            }));
+        }
+    }
     (firsts, slots)
 }
 
@@ -929,7 +934,7 @@ pub(super) mod tests {
         assert!(h.at_contact(floor) && h.splittable(floor));
         let estimate = h.estimate(floor, light);
         let contact = Factors {
-            f: estimate.0,
+            f: estimate.0 as f32,
             smooth: 1.0,
             contact: true,
             unlit: None,
@@ -1086,7 +1091,7 @@ pub(super) mod tests {
         let (floor, light) = (0u32, 2u32);
         let estimate = h.estimate(floor, light);
         let unsure = Factors {
-            f: estimate.0,
+            f: estimate.0 as f32,
             smooth: 1.0,
             contact: false,
             unlit: None,
