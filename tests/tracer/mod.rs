@@ -395,25 +395,49 @@ impl Tracer {
         sum
     }
 
+    /// One sample of ∫ B(y) cos θ / π dω at x on patch `on` for a given radiosity `b(patch, s,
+    /// t)` instead of a path: the emitters' E by a light point each ([`Tracer::direct`]) and by
+    /// one cosine-distributed direction, weighted against each other, and the rest of B where
+    /// that direction meets a front face. Returns the light points' part and, when the
+    /// direction meets a front face, that patch and what it adds; `None` when it meets the back
+    /// of a surface (x is inside a solid: a covered point, which receives nothing).
+    #[allow(dead_code)]
+    pub fn one_bounce(
+        &self,
+        x: V3,
+        on: usize,
+        rng: &mut SmallRng,
+        b: &dyn Fn(usize, f64, f64) -> V3,
+    ) -> Option<(V3, Option<(usize, V3)>)> {
+        let direct = self.direct(x, on, rng);
+        let n = self.quads[on].n;
+        let dir = cosine_direction(n, rng.random(), rng.random());
+        let Some((hit, h)) = self.nearest(x, dir, on) else {
+            return Some((direct, None));
+        };
+        let q = &self.quads[hit];
+        if dot(dir, q.n) >= 0.0 {
+            return None;
+        }
+        let (_, s, t) = q.hit_at(x, dir).expect("the nearest patch is met");
+        let mut v = b(hit, s, t);
+        if self.emitting_area[hit] > 0.0 && q.emits(s, t) {
+            // B holds E, which the light points count too: the direction keeps its share
+            let cy = -dot(dir, q.n);
+            let light = h * h / (cy * self.emitting_area[hit]);
+            let cosine = dot(dir, n) / std::f64::consts::PI;
+            let w = power_heuristic(cosine, light) - 1.0;
+            v = add(v, scale(q.emission, w));
+        }
+        Some((direct, Some((hit, v))))
+    }
+
     /// ∫ B(y) cos/(π r²) V dA_y at x on `on`, without the emitters' own E (counted by `direct`).
     pub fn gathered(&self, x: V3, on: usize, rng: &mut SmallRng) -> V3 {
         let mut total = self.direct(x, on, rng);
         // one cosine-distributed direction: its estimator of ∫ B cosθx/π dω is B(y) itself
         let n = self.quads[on].n;
-        let (u1, u2): (f64, f64) = (rng.random(), rng.random());
-        let (r, phi) = (u1.sqrt(), 2.0 * std::f64::consts::PI * u2);
-        let a = if n[0].abs() > 0.5 {
-            [0.0, 1.0, 0.0]
-        } else {
-            [1.0, 0.0, 0.0]
-        };
-        let b1 = cross(n, a);
-        let b1 = scale(b1, 1.0 / dot(b1, b1).sqrt());
-        let b2 = cross(n, b1);
-        let dir = add(
-            add(scale(b1, r * phi.cos()), scale(b2, r * phi.sin())),
-            scale(n, (1.0 - u1).sqrt()),
-        );
+        let dir = cosine_direction(n, rng.random(), rng.random());
         if let Some((hit, h)) = self.nearest(x, dir, on) {
             let q = &self.quads[hit];
             if dot(dir, q.n) < 0.0 && self.emitting_area[hit] > 0.0 {
@@ -572,6 +596,23 @@ impl Tracer {
             })
             .collect()
     }
+}
+
+/// A direction about the unit normal `n` with density cos θ / π, from two uniform numbers.
+pub fn cosine_direction(n: V3, u1: f64, u2: f64) -> V3 {
+    let (r, phi) = (u1.sqrt(), 2.0 * std::f64::consts::PI * u2);
+    let a = if n[0].abs() > 0.5 {
+        [0.0, 1.0, 0.0]
+    } else {
+        [1.0, 0.0, 0.0]
+    };
+    let b1 = cross(n, a);
+    let b1 = scale(b1, 1.0 / dot(b1, b1).sqrt());
+    let b2 = cross(n, b1);
+    add(
+        add(scale(b1, r * phi.cos()), scale(b2, r * phi.sin())),
+        scale(n, (1.0 - u1).sqrt()),
+    )
 }
 
 /// The power heuristic's weight (β = 2) of a sample drawn with density `a` against another
