@@ -90,7 +90,8 @@ fn main() {
             }
             let mut rng = rand::rngs::SmallRng::seed_from_u64(((p as u64) << 32) ^ cell as u64);
             let (mut b, mut gathered, mut points) = (0.0, 0.0, 0);
-            let mut by: BTreeMap<usize, f64> = BTreeMap::new();
+            // by document surface; `None`: the emitters' light points
+            let mut by: BTreeMap<Option<usize>, f64> = BTreeMap::new();
             let light = |patch: usize, s: f64, t: f64| fields[patch].eval(s, t);
             for _ in 0..POINTS {
                 let (mut s, mut t) = (
@@ -108,10 +109,10 @@ fn main() {
                 points += 1;
                 b += fields[p].eval(s, t)[1];
                 gathered += direct[1];
-                *by.entry(usize::MAX).or_default() += direct[1];
+                *by.entry(None).or_default() += direct[1];
                 if let Some((hit, v)) = sample {
                     gathered += v[1];
-                    *by.entry(tracer.quads[hit].owner).or_default() += v[1];
+                    *by.entry(Some(tracer.quads[hit].owner)).or_default() += v[1];
                 }
             }
             if points == 0 {
@@ -123,8 +124,8 @@ fn main() {
                 .iter()
                 .map(|(&o, &v)| (o, q.rho[1] * v / n))
                 .filter(|&(_, v)| v > 1e-3 * rhs)
-                .map(|(o, v)| match names.get(o) {
-                    Some(name) => format!("{name} {v:.4}"),
+                .map(|(o, v)| match o {
+                    Some(o) => format!("{} {v:.4}", names[o]),
                     None => format!("light points {v:.4}"),
                 })
                 .collect();

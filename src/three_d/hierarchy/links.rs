@@ -94,9 +94,7 @@ impl Links {
 
     /// Each link with its block.
     pub(super) fn iter(&self) -> impl Iterator<Item = (&Link, &[f32])> {
-        self.ends
-            .iter()
-            .zip(self.blocks.chunks_exact(self.size.max(1)))
+        self.run(0..self.len())
     }
 
     /// The links `run` with their blocks.
