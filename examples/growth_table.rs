@@ -25,6 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         1,
         Some(32),
         Keep::All,
+        &job::Rules::DEFAULT,
         &Silent,
     )?;
     let measure = job::surface_measures(&with(json!({}))?);
@@ -75,6 +76,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             j.solver.order,
             Some(j.solver.resolution),
             Keep::All,
+            &job::Rules::DEFAULT,
             &Silent,
         )?;
         let ms = t.elapsed().as_secs_f64() * 1e3;

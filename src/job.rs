@@ -14,6 +14,7 @@ use crate::progress::{Cancelled, Phase, Progress};
 use crate::result::*;
 use crate::scene::{BasisKind, Job, Keep, Method, Reference, Rgb, SceneKind};
 use crate::three_d::projection as three_d;
+pub use crate::three_d::rules::Rules;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -31,9 +32,21 @@ pub struct Outcome {
 
 /// Runs a job.
 pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
+    run_with(job, &Rules::DEFAULT, progress)
+}
+
+/// Runs a job with the 3D refinement's rules changed ([`Rules`]: to show what each bounds).
+pub fn run_with(job: &Job, rules: &Rules, progress: &dyn Progress) -> Result<Outcome, JobError> {
     let start = Instant::now();
     let given = job.solver.resolution_given.then_some(job.solver.resolution);
-    let mut sol = solve_job(job, job.solver.order, given, job.solver.keep, progress)?;
+    let mut sol = solve_job(
+        job,
+        job.solver.order,
+        given,
+        job.solver.keep,
+        rules,
+        progress,
+    )?;
     let names = job.surface_names();
     let measure = surface_measures(job);
     let t = Instant::now();
@@ -55,7 +68,7 @@ pub fn run(job: &Job, progress: &dyn Progress) -> Result<Outcome, JobError> {
                 inner: progress,
                 phase: Phase::Reference,
             };
-            let reference = solve_job(job, order, Some(resolution), Keep::All, &quiet)?;
+            let reference = solve_job(job, order, Some(resolution), Keep::All, rules, &quiet)?;
             let (mut d, mut n) = (0.0, 0.0);
             for (i, f) in sol.fields.iter().enumerate() {
                 let (di, ni) = metrics::l2_difference(f, &reference.fields[i], measure[i]);
@@ -237,6 +250,7 @@ pub fn solve_job(
     order: usize,
     given: Option<usize>,
     keep: Keep,
+    rules: &Rules,
     progress: &dyn Progress,
 ) -> Result<Solution, JobError> {
     let resolution = given.unwrap_or(job.solver.resolution);
@@ -276,7 +290,7 @@ pub fn solve_job(
             progress,
         )?,
         (SceneKind::ThreeD(_), Method::Hierarchical) => {
-            crate::three_d::hierarchy::solve(job, order, given, progress)?
+            crate::three_d::hierarchy::solve(job, order, given, rules, progress)?
         }
         (_, Method::Projection) => {
             let t = Instant::now();

@@ -151,7 +151,7 @@ fn cornell_box_approaches_path_tracing_as_epsilon_shrinks() {
     // before the visible fraction was weighted by the kernel and the oracle looked at the
     // receiver's edges.
     //
-    // [`receiver_first`]: wavrad::three_d::hierarchy::refine::receiver_first
+    // [`receiver_first`]: wavrad::three_d::rules::Rules::receiver_first_level
     let reference = cornell_reference();
     let mut doc = scene_file("cornell-box");
     let mut nets = Vec::new();
@@ -221,7 +221,7 @@ fn the_floor_at_the_foot_of_a_lit_face() {
     // under the block. Measured within 4.7 % (green; +3.8 % and +4.7 % half a unit from the
     // foot, −3.6 % and −1.5 % at 12 units); within 15.5 % (+6.5 % and +15.5 % half a unit
     // from the foot) before coarse receivers were split before their sources
-    // ([`wavrad::three_d::hierarchy::refine::receiver_first`]); fitting one polynomial over the covered and
+    // ([`wavrad::three_d::rules::Rules::receiver_first_level`]); fitting one polynomial over the covered and
     // the exposed part of each such cell, as before the covered part was left out of the
     // fit, gave −50 % at the foot. What is left is the direct light: with every other
     // surface black the floor there is +11–13 % half a unit from the foot, because the
@@ -251,7 +251,7 @@ fn the_floor_at_the_foot_of_an_unlit_face() {
     // the floor in front of the short block's front, which the light does not reach: the
     // block shades that floor and hides half of the room from the points next to its foot.
     // Rays from inside a coarse floor element see none of that, so such elements are split
-    // against half the tolerance ([`wavrad::three_d::hierarchy::refine::CONTACT_SHARE`]).
+    // against half the tolerance ([`wavrad::three_d::rules::Rules::contact_share`]).
     // Measured 1 / 2 / 5 / 10 / 17 units in front: +5.3 / +7.7 / +2.6 / −3.9 / −0.4 %; before
     // coarse receivers were split before their sources +13.6 / +12.2 / +3.4 / −0.4 / −1.2 %,
     // and with the whole tolerance +40 / +37 / +24 / +16 / +11 %
@@ -317,7 +317,7 @@ fn a_room_lit_through_its_ceiling() {
     // noise: 0.05 % at order 1 and 1.74 % at order 0, every surface mean within 0.05 % and
     // 1.8 % (all low at order 0: a constant over a coarse source averages its bright spot);
     // before coarse receivers were split before their sources
-    // ([`wavrad::three_d::hierarchy::refine::receiver_first`]), 1.49 % and 6.98 %, with
+    // ([`wavrad::three_d::rules::Rules::receiver_first_level`]), 1.49 % and 6.98 %, with
     // the walls' corner cells 5 % and 36 % bright
     let wall = |name: &str, corners: Value, rho: Value| json!({ "name": name, "corners": corners, "reflectance": rho });
     let doc = json!({
@@ -616,8 +616,8 @@ fn means_within(label: &str, doc: &Value, reference: &[(V3, V3)], skipped: &[&st
 /// fraction, `three_d::hierarchy::clustered`): what is asked of them is that their error
 /// falls with ε (2.8 % at ε = 2.5e-4, `benches/README.md`). Below ε = 5e-4 the
 /// iteration diverged: the floor's elements between the books are exposed in slivers, whose
-/// polynomials' continuations under the books were sent with them (`three_d::cover`'s
-/// `SENDING_SHARE`).
+/// polynomials' continuations under the books were sent with them (`Rules::sending_share`
+/// in `three_d::rules`).
 #[test]
 fn a_row_of_books_on_a_meshed_floor() {
     let mut surfaces = meshed_walls(6, 5, 0.6);

@@ -218,7 +218,7 @@ fn hierarchical_links_grow_linearly_with_the_leaves() {
         }
         // linear: each step adds links in proportion to the leaves it adds, to 15 % (the
         // links between elements coarser than the receivers' first level,
-        // [`wavrad::three_d::hierarchy::refine::receiver_first`], are a fixed part that the
+        // [`wavrad::three_d::rules::Rules::receiver_first_level`], are a fixed part that the
         // resolution does not touch); a dense matrix would add four times as many per leaf
         // at each step
         let slope = |a: (f64, f64), b: (f64, f64)| (b.1 - a.1) / (b.0 - a.0);
@@ -229,7 +229,7 @@ fn hierarchical_links_grow_linearly_with_the_leaves() {
     // and as ε shrinks 16-fold the links per leaf grow by far less than 16: measured 1.90,
     // 6.51 and 12.57 at resolution 128, 6.6-fold, a little above the 16^(2/3) ≈ 6.3 of the
     // estimate above, because the receivers along the blocks' feet are judged against half
-    // the tolerance ([`wavrad::three_d::hierarchy::refine::CONTACT_SHARE`]), which reaches
+    // the tolerance ([`wavrad::three_d::rules::Rules::contact_share`]), which reaches
     // more sources as ε shrinks (5.1-fold before)
     eprintln!("links per leaf at resolution 128: {per_leaf:?}");
     assert!(per_leaf[2] / per_leaf[0] < 16f64.powf(0.75), "{per_leaf:?}");

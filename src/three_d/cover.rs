@@ -25,7 +25,7 @@
 //! Such an element sends its polynomial over the whole of it, and the rays between it and a
 //! receiver, which start inside the solid where they start on the covered part, take that
 //! part out as a visible fraction; what it sends is the part of the polynomial that the
-//! exposed part determines ([`SENDING_SHARE`]).
+//! exposed part determines ([`Rules::sending_share`]).
 //!
 //! A triangle patch is masked on the same grid of its (s, t) square, of which it is the half
 //! s + t ≤ 1; its elements' Gram matrices are those of the orthonormal polynomials on
@@ -37,6 +37,7 @@ use crate::three_d::bvh::Bvh;
 use crate::three_d::geometry::{
     add, covariance, cross, dot, normalize, scale, Parallelogram, Piece, Sym, V3,
 };
+use crate::three_d::rules::Rules;
 use crate::three_d::steps::STEP;
 use rayon::prelude::*;
 
@@ -46,39 +47,17 @@ const SUB: usize = 16;
 /// Relative size below which an eigenvalue of a masked Gram matrix counts as zero.
 const CUTOFF: f64 = 1e-3;
 
-/// An element sends the eigenvectors of its masked Gram matrix whose eigenvalue is at least
-/// this share of the least well determined one of an element half covered (relative to the
-/// largest, at the same order: [`sending_cutoff`]); the fit B = G⁺ h keeps those above
-/// [`CUTOFF`].
-///
-/// An element sends its polynomial over the whole of it, and the rays, which find the covered
-/// part's points inside the solid resting on it, take that part back out of the transfer as a
-/// visible fraction. That is right while the polynomial over the covered part is of the size
-/// it has on the exposed part. An eigenvector with eigenvalue λ is 1/√λ times larger over the
-/// whole element than on its exposed part, and the fit scales it by 1/λ: on the floor between
-/// books standing 3 mm apart (slivers an eighth of an element wide, λ = 1.4e-3 of the largest
-/// at order 1) the continuation under the books carried so much light that below ε = 5e-4
-/// the iteration diverged. At order 1 the cut-off is 3.6e-3 (a sent eigenvector is at most 17
-/// times larger over the element than where it is seen; slivers under a sixth of an element
-/// send their mean and slope along the sliver only). From order 2 on it is below [`CUTOFF`],
-/// which drops more already, and nothing changes: the cut-off 1e-2 for every order took
-/// eigenvectors the fit keeps at orders 2 and 3 (an element half covered has one at 3.9e-3
-/// at order 2) and put the Cornell box's ceiling at order 3 0.88 % off
-/// (`tests/path_traced.rs`), and 3e-3 made order 2 on the gallery's rotated boxes twice as
-/// far from the tracer as order 1 (`tests/gallery.rs`).
-const SENDING_SHARE: f64 = 0.05;
-
 /// The relative eigenvalue below which an element of `k` × `k` functions does not send an
-/// eigenvector ([`SENDING_SHARE`]): the least relative eigenvalue of the Gram matrix of k
+/// eigenvector ([`Rules::sending_share`], `share`): the least relative eigenvalue of the Gram matrix of k
 /// Legendre polynomials on half of their interval (and so of a square half covered, their
 /// tensor product) times that share, and no less than [`CUTOFF`].
-fn sending_cutoff(k: usize) -> f64 {
+fn sending_cutoff(k: usize, share: f64) -> f64 {
     if k < 2 {
         return CUTOFF;
     }
     let g = interval_gram([0.5, 1.0], k);
     let eig = nalgebra::SymmetricEigen::new(nalgebra::DMatrix::from_row_slice(k, k, &g));
-    (SENDING_SHARE * eig.eigenvalues.min() / eig.eigenvalues.max()).max(CUTOFF)
+    (share * eig.eigenvalues.min() / eig.eigenvalues.max()).max(CUTOFF)
 }
 
 /// What lies under one finest cell.
@@ -94,6 +73,8 @@ enum Cell {
 #[derive(Debug, Clone)]
 pub struct Mask {
     res: usize,
+    /// [`Rules::sending_share`] of the elements' exposures.
+    sending_share: f64,
     /// `[t][s]`.
     cells: Vec<Cell>,
 }
@@ -156,21 +137,28 @@ impl Mask {
         bvh: &Bvh,
         all: &Bvh,
         groups: &[Vec<u32>],
+        rules: &Rules,
         res: impl Fn(usize) -> usize + Sync,
     ) -> Vec<Option<Mask>> {
         let quads = all.quads();
-        let lidded = lids(all, &widths(quads, groups));
+        let lidded = lids(all, &widths(quads, groups), rules.lid_gap);
         (0..quads.len())
             .into_par_iter()
             .map(|i| {
                 (lidded[i] || !contacts(all, i).is_empty())
-                    .then(|| Mask::probe(quads, bvh, i, res(i)))
+                    .then(|| Mask::probe(quads, bvh, i, res(i), rules.sending_share))
                     .filter(|m| m.cells.iter().any(|c| *c != Cell::Open))
             })
             .collect()
     }
 
-    fn probe(quads: &[Parallelogram], bvh: &Bvh, surface: usize, res: usize) -> Mask {
+    fn probe(
+        quads: &[Parallelogram],
+        bvh: &Bvh,
+        surface: usize,
+        res: usize,
+        sending_share: f64,
+    ) -> Mask {
         let covered = |s: f64, t: f64| covered_at(quads, bvh, surface, s, t);
         let h = 1.0 / res as f64;
         let corners: Vec<bool> = (0..(res + 1) * (res + 1))
@@ -232,7 +220,11 @@ impl Mask {
                 }
             })
             .collect();
-        Mask { res, cells }
+        Mask {
+            res,
+            sending_share,
+            cells,
+        }
     }
 
     /// Whether the point (s, t) of the surface is covered (to the sub-cell grid).
@@ -374,7 +366,7 @@ impl Mask {
         if gram[0] <= 0.0 {
             return Exposure::Covered;
         }
-        let (inverse, sending) = pseudo_inverse(&gram, kk);
+        let (inverse, sending) = pseudo_inverse(&gram, kk, self.sending_share);
         Exposure::Partial(Box::new(Partial {
             inverse,
             sending,
@@ -479,7 +471,7 @@ impl Mask {
         if gram[0] <= 1e-12 {
             return Exposure::Covered;
         }
-        let (inverse, sending) = pseudo_inverse(&gram, kk);
+        let (inverse, sending) = pseudo_inverse(&gram, kk, self.sending_share);
         Exposure::Partial(Box::new(Partial {
             inverse,
             sending,
@@ -496,12 +488,12 @@ fn is_set(bits: &[u64; SUB * SUB / 64], b: usize) -> bool {
 }
 
 /// The pseudo-inverse of a symmetric positive semi-definite `n × n` matrix.
-fn pseudo_inverse(g: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
+fn pseudo_inverse(g: &[f64], n: usize, sending_share: f64) -> (Vec<f64>, Vec<f64>) {
     let eig = nalgebra::SymmetricEigen::new(nalgebra::DMatrix::from_row_slice(n, n, g));
     let top = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
     let mut out = vec![0.0; n * n];
     let mut sending = vec![0.0; n * n];
-    let send = sending_cutoff((n as f64).sqrt().round() as usize);
+    let send = sending_cutoff((n as f64).sqrt().round() as usize, sending_share);
     for (l, v) in eig.eigenvalues.iter().zip(eig.eigenvectors.column_iter()) {
         if *l <= CUTOFF * top {
             continue;
@@ -590,7 +582,7 @@ fn clip_inside(a: [f64; 2], b: [f64; 2], tri: bool) -> Option<[[f64; 2]; 2]> {
 }
 
 /// For each patch i, whether another surface lies flat against it, facing the same way,
-/// closer to it than [`LID_GAP`] of its own width ([`widths`]), over part of it: a ceiling
+/// closer to it than `gap` ([`Rules::lid_gap`]) of its own width ([`widths`]), over part of it: a ceiling
 /// light hung a little below the ceiling, a rug on a floor. The ceiling behind the light sees
 /// only the light's back through a sliver at grazing angles, so it is dark up to the light's
 /// outline, where one polynomial over both sides would smear it (on the Cornell box without
@@ -603,18 +595,18 @@ fn clip_inside(a: [f64; 2], b: [f64; 2], tri: bool) -> Option<[[f64; 2]; 2]> {
 /// a meshed ceiling wholly under a light holds none of the light's corners).
 ///
 /// `all` holds every surface ([`Bvh::new`]). Each lid j is looked for over the patches within
-/// [`LID_GAP`] of its own width of its box; looking around each patch i instead, as far as the
+/// `gap` of its own width of its box; looking around each patch i instead, as far as the
 /// widest surface's gap (a wall's, 0.2 units in a 10-unit room), held thousands of others
 /// around each of 10⁶ small triangles: 85 % of such a job's first minutes, on one core.
-fn lids(all: &Bvh, widths: &[f64]) -> Vec<bool> {
+fn lids(all: &Bvh, widths: &[f64], gap: f64) -> Vec<bool> {
     let quads = all.quads();
     let under: Vec<Vec<u32>> = (0..quads.len())
         .into_par_iter()
         .map(|j| {
-            let (lo, hi) = padded_box(&quads[j], LID_GAP * widths[j]);
+            let (lo, hi) = padded_box(&quads[j], gap * widths[j]);
             let mut under = Vec::new();
             all.any_in_box(lo, hi, |i| {
-                if lies_over(quads, j, i, widths) {
+                if lies_over(quads, j, i, widths, gap) {
                     under.push(i as u32);
                 }
                 false
@@ -634,21 +626,22 @@ fn lids(all: &Bvh, widths: &[f64]) -> Vec<bool> {
 /// direct form, which the tests hold [`lids`] to.
 #[cfg(test)]
 fn lidded(all: &Bvh, i: usize, widths: &[f64]) -> bool {
+    let gap = Rules::DEFAULT.lid_gap;
     let quads = all.quads();
     let widest = widths.iter().copied().fold(0.0, f64::max);
-    let (lo, hi) = padded_box(&quads[i], LID_GAP * widest);
-    all.any_in_box(lo, hi, |j| lies_over(quads, j, i, widths))
+    let (lo, hi) = padded_box(&quads[i], gap * widest);
+    all.any_in_box(lo, hi, |j| lies_over(quads, j, i, widths, gap))
 }
 
 /// Whether patch `j` lies flat over patch `i` as a lid: facing the same way, in front of it by
-/// less than [`LID_GAP`] of j's surface's width, over part of it.
-fn lies_over(quads: &[Parallelogram], j: usize, i: usize, widths: &[f64]) -> bool {
+/// less than `gap` of j's surface's width, over part of it.
+fn lies_over(quads: &[Parallelogram], j: usize, i: usize, widths: &[f64], gap: f64) -> bool {
     let (q, o) = (&quads[i], &quads[j]);
-    let gap = q.side(o.p0);
+    let side = q.side(o.p0);
     j != i
         && dot(q.n, o.n) > 1.0 - 1e-9
-        && gap > 0.0
-        && gap < LID_GAP * widths[j]
+        && side > 0.0
+        && side < gap * widths[j]
         && (o.outline().iter().any(|&c| inside(q, c)) || q.outline().iter().any(|&c| inside(o, c)))
 }
 
@@ -710,10 +703,6 @@ fn padded_box(q: &Parallelogram, pad: f64) -> (V3, V3) {
 
 /// How far outside a piece, in its surface's (s, t), a contact line still touches it.
 const MEET_SLACK: f64 = 1e-9;
-
-/// How close a surface must lie in front of another, as a share of its width, to be
-/// taken for a lid ([`lidded`]): the probes of the mask then decide, point by point.
-const LID_GAP: f64 = 0.02;
 
 /// Whether the segment `line` of (s, t) meets the closed piece `[s0, s1] × [t0, t1]`
 /// (Liang–Barsky clipping), widened by [`MEET_SLACK`]: a line along the border of two pieces,
@@ -787,12 +776,17 @@ mod tests {
             let n = crate::math::triangle::dimension(k - 1);
             let open = Mask {
                 res: 2,
+                sending_share: Rules::DEFAULT.sending_share,
                 cells: vec![Cell::Open; 4],
             };
             assert_eq!(open.exposure_triangle(&root, k), Exposure::Open);
             let mut cells = vec![Cell::Open; 4];
             cells[0] = Cell::Covered;
-            let corner = Mask { res: 2, cells };
+            let corner = Mask {
+                res: 2,
+                sending_share: Rules::DEFAULT.sending_share,
+                cells,
+            };
             let Exposure::Partial(p) = corner.exposure_triangle(&root, k) else {
                 panic!("partly covered")
             };
@@ -827,7 +821,11 @@ mod tests {
             }
             let mut cells = vec![Cell::Covered; 4];
             cells[0] = Cell::Cut(Box::new(bits));
-            let cut = Mask { res: 2, cells };
+            let cut = Mask {
+                res: 2,
+                sending_share: Rules::DEFAULT.sending_share,
+                cells,
+            };
             let Exposure::Partial(p) = cut.exposure_triangle(&root, k) else {
                 panic!("partly covered")
             };
@@ -870,7 +868,13 @@ mod tests {
             assert!(dot(q.n, out) > 0.0, "the box's faces point out");
         }
         let bvh = Bvh::occluders(&quads);
-        let masks = Mask::of_scene(&bvh, &Bvh::new(&quads), &each_alone(quads.len()), |_| 8);
+        let masks = Mask::of_scene(
+            &bvh,
+            &Bvh::new(&quads),
+            &each_alone(quads.len()),
+            &Rules::DEFAULT,
+            |_| 8,
+        );
         assert!(masks[1..].iter().all(Option::is_none));
         let m = masks[0].as_ref().expect("the floor is stood on");
         assert!(m.covered(3.5 / 8.0, 3.0 / 8.0));
@@ -953,9 +957,15 @@ mod tests {
         assert!(quads[0].n[1] < 0.0 && quads[1].n[1] < 0.0, "both face down");
         assert!(lidded(&Bvh::new(&quads), 0) && !lidded(&Bvh::new(&quads), 1));
         let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(&bvh, &Bvh::new(&quads), &each_alone(quads.len()), |_| 8)
-            .remove(0)
-            .expect("covered");
+        let m = Mask::of_scene(
+            &bvh,
+            &Bvh::new(&quads),
+            &each_alone(quads.len()),
+            &Rules::DEFAULT,
+            |_| 8,
+        )
+        .remove(0)
+        .expect("covered");
         // the ceiling's s runs along x and t along z: the panel is [0.375, 0.625]²
         assert!(m.covered(0.5, 0.5) && m.covered(0.4, 0.6));
         assert!(!m.covered(0.3, 0.5) && !m.covered(0.5, 0.7) && !m.covered(0.1, 0.1));
@@ -1098,10 +1108,10 @@ mod tests {
         for g in [&groups[..], &each_alone(quads.len())] {
             let w = widths(&quads, g);
             let direct: Vec<bool> = (0..quads.len()).map(|i| lidded(&all, i, &w)).collect();
-            assert_eq!(lids(&all, &w), direct);
+            assert_eq!(lids(&all, &w, Rules::DEFAULT.lid_gap), direct);
         }
         let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(&bvh, &all, &groups, |_| 8)
+        let m = Mask::of_scene(&bvh, &all, &groups, &Rules::DEFAULT, |_| 8)
             .remove(0)
             .expect("the floor under the rug is covered");
         // the floor's s runs along z and t along x: the rug is [0.375, 0.625]²
@@ -1114,9 +1124,15 @@ mod tests {
         // the foot's edge z = 4.5 halves the finest cell z ∈ [4, 5], x ∈ [3, 4]
         let quads = floor_with_box([2.0, 3.0], [5.0, 4.5]);
         let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(&bvh, &Bvh::new(&quads), &each_alone(quads.len()), |_| 8)
-            .remove(0)
-            .expect("mask");
+        let m = Mask::of_scene(
+            &bvh,
+            &Bvh::new(&quads),
+            &each_alone(quads.len()),
+            &Rules::DEFAULT,
+            |_| 8,
+        )
+        .remove(0)
+        .expect("mask");
         for k in 1..=4 {
             let Exposure::Partial(p) = m.exposure([0.5, 0.625], [0.375, 0.5], k) else {
                 panic!("cut")
@@ -1179,9 +1195,15 @@ mod tests {
         let exposure = |edge: f64, k: usize| {
             let quads = floor_with_box([2.0, 3.0], [5.0, edge]);
             let bvh = Bvh::occluders(&quads);
-            let m = Mask::of_scene(&bvh, &Bvh::new(&quads), &each_alone(quads.len()), |_| 8)
-                .remove(0)
-                .expect("mask");
+            let m = Mask::of_scene(
+                &bvh,
+                &Bvh::new(&quads),
+                &each_alone(quads.len()),
+                &Rules::DEFAULT,
+                |_| 8,
+            )
+            .remove(0)
+            .expect("mask");
             match m.exposure([0.5, 0.625], [0.375, 0.5], k) {
                 Exposure::Partial(p) => p,
                 other => panic!("{other:?}"),
@@ -1207,7 +1229,7 @@ mod tests {
             .zip(eig.eigenvectors.column_iter())
             .min_by(|a, b| a.0.total_cmp(b.0))
             .expect("eigenvalues");
-        let send = sending_cutoff(2);
+        let send = sending_cutoff(2, Rules::DEFAULT.sending_share);
         assert!((send - 3.59e-3).abs() < 1e-5, "{send}");
         assert!(low / top > CUTOFF && low / top < send, "{}", low / top);
         let on_exposed = |b: &[[f64; 3]]| {

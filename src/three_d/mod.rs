@@ -3,7 +3,7 @@
 //! visibility term, [`cover`] the part of a surface that a solid stands on, [`transfer`]
 //! integrates the Galerkin block between two pieces, `congruence` shares it between equal
 //! pairs, [`projection`] assembles the projection method's matrix and [`hierarchy`] solves by
-//! hierarchical wavelet radiosity.
+//! hierarchical wavelet radiosity, with the [`rules`] that bound what its estimate does not see.
 
 pub mod bvh;
 pub mod cluster;
@@ -12,6 +12,7 @@ pub mod cover;
 pub mod geometry;
 pub(crate) mod hierarchy;
 pub mod projection;
+pub mod rules;
 mod steps;
 pub mod transfer;
 pub mod visibility;

@@ -717,9 +717,19 @@ pub fn reference(doc: &Value, per_side: usize) -> Vec<Vec<(V3, V3)>> {
 }
 
 pub fn compare(doc: &Value, reference: &[Vec<(V3, V3)>], label: &str) -> Comparison {
+    compare_with(doc, reference, label, &job::Rules::DEFAULT)
+}
+
+/// [`compare`] of a solve with the 3D refinement's `rules`.
+pub fn compare_with(
+    doc: &Value,
+    reference: &[Vec<(V3, V3)>],
+    label: &str,
+    rules: &job::Rules,
+) -> Comparison {
     let tracer = Tracer::new(doc);
     let j = parse_value(doc, &Limits::default()).expect("valid document");
-    let out = job::run(&j, &Silent).expect("solves");
+    let out = job::run_with(&j, rules, &Silent).expect("solves");
     let mut surfaces = Vec::new();
     let (mut gap2, mut noise2, mut norm2) = (0.0, 0.0, 0.0);
     eprintln!("{label}: surface means, solver / path traced − 1 (± 1 standard error)");

@@ -48,6 +48,8 @@ use crate::three_d::cover::{Exposure, Partial};
 use crate::three_d::geometry::{
     add, covariance, dot, norm, scale, sub, sym, sym_axpy, Parallelogram, Sym, V3,
 };
+#[cfg(doc)]
+use crate::three_d::rules::Rules;
 use crate::three_d::visibility::{pair_seed, unseen_bound, SplitMix};
 use rayon::prelude::*;
 
@@ -66,14 +68,6 @@ const MEMBER_RAYS: usize = 1;
 /// ([`Hierarchy::sample`]): an end with an exposed share f keeps a covered point with
 /// probability (1 − f)¹⁶, and only such a point's ray may be wrongly blocked.
 const COVERED_DRAWS: usize = 16;
-
-/// The least distance between the boxes of a cluster link's ends, in their larger diameter.
-/// Taking both ends as points is a fair kernel only for separated ends: the distance of any
-/// two of their points is then within a factor 3 of the centres', and the transfer stays
-/// below the form factor of a disc of the ends' size at that distance, which keeps the
-/// iteration a contraction whatever B the source has when the link is accepted (a dark
-/// source passes the oracle at any distance before the first solve).
-const SEPARATION: f64 = 1.0;
 
 /// A link with a cluster at one end or both.
 #[derive(Debug, Clone)]
@@ -570,10 +564,10 @@ impl Hierarchy<'_> {
         } else {
             size / (size + dist)
         };
-        // a split only where it lowers the estimate (ends closer than [`SEPARATION`] are
+        // a split only where it lowers the estimate (ends closer than [`Rules::separation`] are
         // split regardless: there the ends are not points)
         let lowers = self.split_lowers(r, dr, ds, smooth, 0.0);
-        if dist < SEPARATION * size
+        if dist < self.rules.separation * size
             || (lowers && self.cluster_error(&sr, &ss, dist, smooth) > sr.tolerance)
         {
             return (split(), 0);
@@ -1162,6 +1156,7 @@ mod tests {
 
     use super::*;
     use crate::three_d::geometry::sym_of;
+    use crate::three_d::rules::Rules;
 
     /// A member of a test source: area, B, centroid, normal and corners.
     type Member = (f64, Rgb, V3, V3, [V3; 4]);
@@ -1346,7 +1341,7 @@ mod tests {
         quads: &'a [crate::scene::Quad],
     ) -> Hierarchy<'a> {
         let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(0.25), None);
-        let mut h = Hierarchy::new(geo, quads, 1, sizing, 1e-3);
+        let mut h = Hierarchy::new(geo, quads, 1, sizing, 1e-3, &Rules::default());
         h.link_all(&crate::progress::Silent).unwrap();
         while h.sweep() > 1e-9 {}
         h
@@ -1475,7 +1470,7 @@ mod tests {
         assert!(h.elements.iter().any(|e| e.sent0()[0] > 0.0));
     }
 
-    /// Ends closer than [`SEPARATION`] times their size are split whatever their estimate
+    /// Ends closer than [`Rules::separation`] times their size are split whatever their estimate
     /// (there the ends are not points): the tile and the light 2 above it (diameter 2.83) are
     /// split at any tolerance, and the light's halves (diameter 2.24 at distance 2) as well,
     /// its quarters (1.41) are linked; 4 above, the light is linked whole.
@@ -1485,7 +1480,7 @@ mod tests {
             let quads = tile_under_light(height, false);
             let geo = crate::three_d::projection::Geometry::new(&quads);
             let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
-            let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3);
+            let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3, &Rules::default());
             h.threshold = f64::INFINITY;
             h.cluster_state = h.measure_clusters();
             let (tile, mut light) = (0u32, h.clusters.roots[1]);
@@ -1498,11 +1493,11 @@ mod tests {
                 );
                 let verdict = h.judge_cluster(tile, light).0;
                 if depth < unsplit {
-                    assert!(dist < SEPARATION * size, "{height} {depth}");
+                    assert!(dist < h.rules.separation * size, "{height} {depth}");
                     assert!(matches!(verdict, ClusterVerdict::Source), "{verdict:?}");
                     light = h.clusters.get(light).children[0];
                 } else {
-                    assert!(dist >= SEPARATION * size, "{height} {depth}");
+                    assert!(dist >= h.rules.separation * size, "{height} {depth}");
                     assert!(matches!(verdict, ClusterVerdict::Link(_)), "{verdict:?}");
                 }
             }
@@ -1520,7 +1515,7 @@ mod tests {
         let quads = tile_under_light(4.0, true);
         let geo = crate::three_d::projection::Geometry::new(&quads);
         let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
-        let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-4);
+        let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-4, &Rules::default());
         h.cluster_state = h.measure_clusters();
         let tile = 0u32;
         assert!(!h.splittable(tile));
@@ -1684,7 +1679,7 @@ mod tests {
         let quads = super::super::tests::patches(doc);
         let geo = crate::three_d::projection::Geometry::new(&quads);
         let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
-        let h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3);
+        let h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3, &Rules::default());
         let both = *h
             .clusters
             .starts

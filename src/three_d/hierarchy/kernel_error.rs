@@ -343,6 +343,7 @@ mod tests {
     use crate::three_d::hierarchy::sizing::Sizing;
     use crate::three_d::hierarchy::surface_groups;
     use crate::three_d::projection::{kernel_squares, Geometry};
+    use crate::three_d::rules::Rules;
     use serde_json::json;
 
     /// A square light 1 above a square floor and a wall beside them, nothing between any
@@ -410,7 +411,7 @@ mod tests {
     /// The links of the scene after one solve and one re-refinement, and Σ‖T‖² over them.
     fn linked<'g>(geo: &'g Geometry, quads: &'g [Quad]) -> (Hierarchy<'g>, f64) {
         let sizing = Sizing::new(&geo.quads, Some(0.05), None);
-        let mut h = Hierarchy::new(geo, quads, 1, sizing, 1e-3);
+        let mut h = Hierarchy::new(geo, quads, 1, sizing, 1e-3, &Rules::default());
         h.link_all(&Silent).unwrap();
         while h.sweep() > 1e-6 {}
         h.rerefine(&Silent).unwrap();

@@ -50,6 +50,7 @@ use crate::three_d::cluster::{is_cluster, Clusters};
 use crate::three_d::cover::{Exposure, Mask, Partial};
 use crate::three_d::geometry::Piece;
 use crate::three_d::projection::{piece_emission, Geometry};
+use crate::three_d::rules::Rules;
 use crate::three_d::transfer::Accuracy;
 use crate::three_d::visibility::Seen;
 use links::Links;
@@ -80,8 +81,11 @@ struct Hierarchy<'g> {
     /// The finest level of each surface's quadtree, by [`sizing`].
     levels: Vec<u32>,
     sizing: Sizing,
-    /// Receivers above this level are split before their sources ([`refine::receiver_first`]).
+    /// Receivers above this level are split before their sources
+    /// ([`Rules::receiver_first_level`]).
     receiver_first: u32,
+    /// The constants of the rules beyond the oracle's estimate.
+    rules: Rules,
     threshold: f64,
     /// The typical reflected radiosity per channel (area-weighted mean over the non-emitting
     /// surfaces) of the last solve; 0 before the first ([`tolerance`]).
@@ -136,6 +140,7 @@ impl<'g> Hierarchy<'g> {
         order: usize,
         sizing: Sizing,
         epsilon: f64,
+        rules: &Rules,
     ) -> Hierarchy<'g> {
         let k = order + 1;
         let emax = quads
@@ -145,7 +150,7 @@ impl<'g> Hierarchy<'g> {
         let levels: Vec<u32> = geo.quads.iter().map(|q| sizing.finest_level(q)).collect();
         let all = Bvh::new(&geo.quads);
         let groups = surface_groups(quads);
-        let masks = Mask::of_scene(&geo.bvh, &all, &groups, |i| 1 << levels[i]);
+        let masks = Mask::of_scene(&geo.bvh, &all, &groups, rules, |i| 1 << levels[i]);
         let elements: Vec<Element> = quads
             .iter()
             .enumerate()
@@ -182,7 +187,8 @@ impl<'g> Hierarchy<'g> {
             filters: Filters::of_order(order),
             tri_basis: TriangleBasis::of_order(order),
             k,
-            receiver_first: refine::receiver_first(order),
+            receiver_first: rules.receiver_first(order),
+            rules: *rules,
             levels,
             sizing,
             threshold: epsilon * emax,
@@ -267,10 +273,10 @@ impl<'g> Hierarchy<'g> {
     /// brightened or turned out uneven) and can still be refined.
     fn outgrown(&self, r: u32, s: u32, x: Factors) -> bool {
         let (kernel, detail) = self.error(r, s, x);
-        // the oracle's share for a receiver along a contact line ([`refine::CONTACT_SHARE`])
+        // the oracle's share for a receiver along a contact line ([`Rules::contact_share`])
         let contact = self.splittable(r) && x.contact;
         let limit = if contact {
-            refine::CONTACT_SHARE * self.tolerance(r)
+            self.rules.contact_share * self.tolerance(r)
         } else {
             self.tolerance(r)
         };
@@ -861,6 +867,7 @@ pub(crate) fn solve(
     job: &Job,
     order: usize,
     resolution: Option<usize>,
+    rules: &Rules,
     progress: &dyn Progress,
 ) -> Result<Solution, JobError> {
     let SceneKind::ThreeD(quads) = &job.scene.kind else {
@@ -874,7 +881,7 @@ pub(crate) fn solve(
     progress.report(Phase::Refinement, 0.0);
     let geo = Geometry::new(quads);
     let sizing = Sizing::new(&geo.quads, job.solver.min_element_size, resolution);
-    let mut h = Hierarchy::new(&geo, quads, order, sizing, job.solver.epsilon);
+    let mut h = Hierarchy::new(&geo, quads, order, sizing, job.solver.epsilon, rules);
     h.gauss_seidel = job.solver.iteration == crate::scene::Iteration::GaussSeidel;
     h.link_all(progress).map_err(|c| stopped(&h, c))?;
     let mut refine_ms = ms(t);
@@ -1044,7 +1051,7 @@ mod tests {
     /// ε = 1e-3.
     fn hierarchy<'g>(geo: &'g Geometry, quads: &'g [Quad]) -> Hierarchy<'g> {
         let sizing = Sizing::new(&geo.quads, Some(0.25), None);
-        Hierarchy::new(geo, quads, 1, sizing, 1e-3)
+        Hierarchy::new(geo, quads, 1, sizing, 1e-3, &Rules::default())
     }
 
     /// A 4 × 4 m ceiling at height 2 facing down: a mesh of 4 × 4 squares, each split along
@@ -1131,7 +1138,14 @@ mod tests {
     fn a_solve_whose_b_leaves_the_physical_bound_has_diverged() {
         let quads = super::refine::tests::cube();
         let geo = Geometry::new(&quads);
-        let mut h = Hierarchy::new(&geo, &quads, 1, Sizing::new(&geo.quads, None, None), 1e-3);
+        let mut h = Hierarchy::new(
+            &geo,
+            &quads,
+            1,
+            Sizing::new(&geo.quads, None, None),
+            1e-3,
+            &Rules::default(),
+        );
         let set = |h: &mut Hierarchy, i: usize, b: f64| {
             let a = h.elements[i].area;
             h.elements[i].b[0] = [b * a.sqrt(); 3];

@@ -14,7 +14,8 @@
 //! square of B on S minus its polynomial there (the wavelet detail below S). A partly visible
 //! pair loses the smoothness factor (a shadow edge is not a polynomial), and so does a receiver
 //! along a line where another surface stands on its surface, when anything may come between it
-//! and S; such a pair is judged against [`CONTACT_SHARE`] of the tolerance, before any ray,
+//! and S; such a pair is judged against a share of the tolerance
+//! ([`Rules::contact_share`]), before any ray,
 //! and split on the receiver's side unless the receiver is the smaller. A pair none of whose
 //! n rays got through takes 3/n for the factor, the rays' bound on what they missed
 //! ([`crate::three_d::visibility::unseen_bound`]). w_RS = 1 when S emits; for inter-reflected
@@ -25,7 +26,7 @@
 //! above ε times the brightest emission (less on a dim receiver, [`super::tolerance`]), an
 //! element is split (down to the
 //! finest level allowed: the source when D_S is most of the error, else the larger, except that
-//! a receiver coarser than [`receiver_first`] goes first, and only where the split lowers the
+//! a receiver coarser than [`Rules::receiver_first_level`] goes first, and only where the split lowers the
 //! estimate: `Hierarchy::splits`) and its children are linked instead;
 //! otherwise the pair becomes a link whose k² × k² block is integrated by [`crate::three_d::transfer`]
 //! and scaled by the visible fraction. That fraction comes from rays that did not judge the
@@ -51,20 +52,14 @@ use crate::three_d::cover::Exposure;
 use crate::three_d::geometry::Piece;
 use crate::three_d::geometry::{add, dot, norm, normalize, quad_quad, scale, sub};
 use crate::three_d::projection::VISIBILITY_GRID;
+#[cfg(doc)]
+use crate::three_d::rules::Rules;
 use crate::three_d::steps::{Steps, STEP};
 use crate::three_d::transfer::{self, Integrand};
 use crate::three_d::visibility::{
     pair_seed, unseen_bound, visible_fraction_over, visible_share_of_light, Seen,
 };
 use rayon::prelude::*;
-
-/// The share of the tolerance for a receiver along a line where another surface stands on its
-/// surface, when something may come between it and the source. Next to such a line (a box's
-/// foot on the floor) the standing surface hides up to half of the room, which the rays from
-/// inside a coarse receiver do not see: on the Cornell box's floor in front of the short
-/// block, 1 / 5 / 10 units from its foot, the whole tolerance left B +40 / +24 / +16 % bright;
-/// half of it, +14 / +3 / −0.4 %, for 65 k → 70 k links (a quarter: +4 / −4 / −5 %, 77 k).
-pub(super) const CONTACT_SHARE: f64 = 0.5;
 
 /// What one pair of the frontier holds beyond its chunk: itself, and up to four pairs of the
 /// next level made by its split.
@@ -78,32 +73,6 @@ fn holds(v: [[f64; 2]; 3], s: f64, t: f64) -> bool {
     !(d.iter().any(|&x| x < -1e-12) && d.iter().any(|&x| x > 1e-12))
 }
 
-/// The level above which a receiver is split before its source when a pair is over the
-/// tolerance: an 8 × 8 split of its surface for constants, 4 × 4 for polynomials of order 1
-/// and 2, 2 × 2 from order 3 on (each element then spans about m + 1 cells of the default
-/// 8 × 8 grid of the result).
-///
-/// Hanrahan, Salzman and Aupperle split the larger of the two pieces. When the source is the
-/// larger, that divides the transfer into parts, each with a smaller form factor and so a
-/// smaller estimate, but it leaves the receiver's polynomial as coarse as it was: the parts'
-/// errors are the same curvature of the irradiance across the receiver, and they add up again
-/// there. A whole wall then held one polynomial against dozens of links from pieces of the
-/// floor, each within the tolerance. In a room with a small light in its ceiling the walls'
-/// cells came out 5 % off at their corners at order 1 (36 % at order 0), while every surface
-/// mean was right to 0.1 %. Splitting such a receiver first took the cell means of that room
-/// from 1.5 % to 0.05 % of a path tracer at order 1 (7.0 % to 1.7 % at order 0), and those
-/// of the Cornell box from 0.53 % to 0.25 % (3.7 % to 0.76 % at order 0), for 8 % more links
-/// at order 1 (38 % at order 0). The price is at order 0: the sources stay coarser, and a
-/// constant over a coarse source averages its bright spot away from the kernel's peak, so
-/// that room's surface means went from 0.3–0.7 % to 1.4–1.8 % low (its energy balance from
-/// 0.994 to 0.984); splitting the source whenever its own variation is a quarter of the
-/// kernel's or more put the balance back at 0.989 but the cells at 3.6 %. Below that level
-/// the larger piece is split as before: to split receivers first at every level cost up to
-/// twelve times the links, for no better cells.
-pub(super) fn receiver_first(order: usize) -> u32 {
-    3u32.saturating_sub((order + 1).ilog2())
-}
-
 /// The geometric part of the oracle's estimate for one pair (in single precision: every link
 /// keeps it, and an estimate needs no more).
 #[derive(Debug, Clone, Copy, Default)]
@@ -113,7 +82,7 @@ pub(super) struct Factors {
     /// (d / (d + dist))^(m+1), or 1 when the pair is partly visible.
     smooth: f32,
     /// Whether the receiver touches a contact line and something may come between it and
-    /// the source ([`CONTACT_SHARE`]).
+    /// the source ([`Rules::contact_share`]).
     pub(super) contact: bool,
     /// Linked before B was known with a visible fraction below 1, the share of the rays
     /// rather than of the light: the side of the grid of fresh rays that take its fraction
@@ -493,7 +462,7 @@ impl Hierarchy<'_> {
                     unlit: None,
                 },
             );
-            if kernel + detail > CONTACT_SHARE * thr {
+            if kernel + detail > self.rules.contact_share * thr {
                 return (Verdict::Split { source: false }, 0);
             }
         }
@@ -870,6 +839,7 @@ pub(super) mod tests {
     use crate::scene::{parse_value, Limits, SceneKind};
     use crate::three_d::hierarchy::sizing::Sizing;
     use crate::three_d::projection::Geometry;
+    use crate::three_d::rules::Rules;
 
     /// The patches of a 3D document.
     fn patches(doc: serde_json::Value) -> Vec<crate::scene::Quad> {
@@ -916,7 +886,7 @@ pub(super) mod tests {
 
     /// A floor with a wall standing on it (its foot a line at a quarter of the floor) and a
     /// light above both: the floor's root element is at that contact line, and the wall may
-    /// come between it and the light, so with an estimate between [`CONTACT_SHARE`] of the
+    /// come between it and the light, so with an estimate between [`Rules::contact_share`] of the
     /// tolerance and the tolerance it is split on its side before any ray; with one under
     /// that share it is not. The floor's half beyond the line is not at it.
     #[test]
@@ -929,6 +899,7 @@ pub(super) mod tests {
             1,
             Sizing::new(&geo.quads, Some(0.5), None),
             1e-3,
+            &Rules::default(),
         );
         let (floor, light) = (0u32, 2u32);
         assert!(h.at_contact(floor) && h.splittable(floor));
@@ -941,28 +912,20 @@ pub(super) mod tests {
         };
         let (kernel, detail) = h.error(floor, light, contact);
         assert!(kernel > 0.0);
-        h.threshold = (kernel + detail) / (0.5 + 0.5 * CONTACT_SHARE);
+        h.threshold = (kernel + detail) / (0.5 + 0.5 * h.rules.contact_share);
         let (verdict, rays) = h.judge(floor, light, estimate);
         assert!(
             matches!(verdict, Verdict::Split { source: false }),
             "{verdict:?}"
         );
         assert_eq!(rays, 0);
-        h.threshold = (kernel + detail) / (0.5 * CONTACT_SHARE);
+        h.threshold = (kernel + detail) / (0.5 * h.rules.contact_share);
         let (verdict, _) = h.judge(floor, light, estimate);
         assert!(!matches!(verdict, Verdict::Split { .. }), "{verdict:?}");
         // the floor's children beyond the line (s > ½) are not at it
         let first = h.split(floor);
         let beyond: Vec<bool> = (0..4).map(|i| h.at_contact(first + i)).collect();
         assert_eq!(beyond, vec![true, false, true, false]);
-    }
-
-    /// Receivers coarser than an 8 × 8 split of their surface at order 0, 4 × 4 at orders 1
-    /// and 2 and 2 × 2 from order 3 are split before their sources.
-    #[test]
-    fn receivers_first_down_to_a_level_set_by_the_order() {
-        let levels: Vec<u32> = (0..5).map(receiver_first).collect();
-        assert_eq!(levels, vec![3, 2, 2, 1, 1]);
     }
 
     /// A small square (one element at its finest level: its edge is under twice the smallest
@@ -981,7 +944,7 @@ pub(super) mod tests {
         let quads = &patches(doc);
         let geo = Geometry::new(quads);
         let sizing = Sizing::new(&geo.quads, Some(1.0), None);
-        let mut h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3);
+        let mut h = Hierarchy::new(&geo, quads, 1, sizing, 1e-3, &Rules::default());
         let (small, mut strip) = (0u32, 1u32);
         assert_eq!((h.finest(small), h.finest(strip)), (0, 3));
         // over the limit, the error the kernel's: the larger source is split (16, then 4
@@ -1039,6 +1002,7 @@ pub(super) mod tests {
                 0,
                 Sizing::new(&geo.quads, Some(size), None),
                 1e-3,
+                &Rules::default(),
             );
             // every pair is accepted: only the rays are counted, once B is known (before it, a
             // partly visible pair carries its judging rays' fraction to the first solve)
@@ -1087,7 +1051,7 @@ pub(super) mod tests {
         );
         let geo = Geometry::new(quads);
         let sizing = Sizing::new(&geo.quads, Some(0.5), None);
-        let mut h = Hierarchy::new(&geo, quads, 0, sizing, 1e-3);
+        let mut h = Hierarchy::new(&geo, quads, 0, sizing, 1e-3, &Rules::default());
         let (floor, light) = (0u32, 2u32);
         let estimate = h.estimate(floor, light);
         let unsure = Factors {

@@ -30,7 +30,7 @@
 //!    relative accuracy of the others. A receiver element whose mean B is below the typical B
 //!    (the area-weighted mean over the non-emitting surfaces, from the solve before) in any
 //!    channel its surface reflects gets the ratio as its share of the tolerance, the least over
-//!    those channels, down to [`DIM_SHARE`]. The element's own B, not its surface's: the floor
+//!    those channels, down to [`Rules::dim_share`]. The element's own B, not its surface's: the floor
 //!    in front of the Cornell box's short block, in the block's shadow at a tenth of the floor's
 //!    mean, came out 28 % bright at its foot with the floor's share. Before the first solve B
 //!    is only E, and the whole tolerance holds.
@@ -40,15 +40,10 @@ use crate::scene::Quad;
 use crate::three_d::cluster::Bound;
 use crate::three_d::geometry::{Piece, V3};
 use crate::three_d::projection::Geometry;
+#[cfg(doc)]
+use crate::three_d::rules::Rules;
 use crate::three_d::transfer::point_polygon;
 use rayon::prelude::*;
-
-/// The least share of the tolerance for a dim receiver: it keeps the tolerance above 0 on a
-/// receiver whose B goes to 0 (a surface hidden from everything, the underside of a ball at
-/// its contact point), whose links' estimates bound the unoccluded transfer and do not shrink
-/// with its B. On the gallery it changes little: without it the Cornell box and the box
-/// against a wall took 3 % more links for the same surface means, the others the same.
-const DIM_SHARE: f64 = 0.0625;
 
 /// Points of a receiver surface, and pieces of a large mesh as a source, in the sampled
 /// form factors of w_R.
@@ -235,7 +230,7 @@ fn form_factor(points: &[(V3, V3)], pieces: &[([V3; 4], f64)]) -> f64 {
 impl Hierarchy<'_> {
     /// The oracle's tolerance for receiver `r`: ε times the brightest emission, times the
     /// share of a dim receiver (rule 2 of the module's doc): the least over the channels that
-    /// its surface reflects of its mean B over the typical B, within [`DIM_SHARE`] and 1 (1
+    /// its surface reflects of its mean B over the typical B, within [`Rules::dim_share`] and 1 (1
     /// before the first solve).
     pub(super) fn tolerance(&self, r: u32) -> f64 {
         let el = &self.elements[r as usize];
@@ -246,7 +241,7 @@ impl Hierarchy<'_> {
                 share = share.min(el.b[0][c] / el.area.sqrt() / self.typical[c]);
             }
         }
-        self.threshold * share.clamp(DIM_SHARE, 1.0)
+        self.threshold * share.clamp(self.rules.dim_share, 1.0)
     }
 
     /// Per channel, the area-weighted mean B over the non-emitting surfaces (0 when there are
@@ -276,6 +271,7 @@ mod tests {
     use crate::three_d::hierarchy::refine::tests::cube;
     use crate::three_d::hierarchy::sizing::Sizing;
     use crate::three_d::hierarchy::surface_groups;
+    use crate::three_d::rules::Rules;
 
     /// The form factors of a unit cube's faces in closed form (Howell's catalogue, C-14 and
     /// C-11): to the opposite face and to an adjacent one.
@@ -309,7 +305,14 @@ mod tests {
             "{w:?}"
         );
         assert!((w.between(1, 0) - 5.0).abs() < 0.05, "{w:?}");
-        let h = Hierarchy::new(&geo, quads, 1, Sizing::new(&geo.quads, None, None), 1e-3);
+        let h = Hierarchy::new(
+            &geo,
+            quads,
+            1,
+            Sizing::new(&geo.quads, None, None),
+            1e-3,
+            &Rules::default(),
+        );
         assert_eq!(h.indirect, w);
     }
 
@@ -372,14 +375,21 @@ mod tests {
 
     /// The tolerance is ε times the brightest emission; after a solve, a receiver dimmer than
     /// the typical B in a channel it reflects gets the ratio, the least over the channels,
-    /// down to [`DIM_SHARE`]; a channel it does not reflect does not count; and it is the
+    /// down to [`Rules::dim_share`]; a channel it does not reflect does not count; and it is the
     /// element's own B that counts, not its surface's.
     #[test]
     fn a_dim_receiver_gets_its_share_of_the_typical_radiosity() {
         let mut quads = cube();
         quads[2].material.reflectance = [0.0, 0.5, 0.5];
         let geo = Geometry::new(&quads);
-        let mut h = Hierarchy::new(&geo, &quads, 1, Sizing::new(&geo.quads, None, None), 1e-3);
+        let mut h = Hierarchy::new(
+            &geo,
+            &quads,
+            1,
+            Sizing::new(&geo.quads, None, None),
+            1e-3,
+            &Rules::default(),
+        );
         assert_eq!(h.tolerance(0), 1e-3);
         let set = |h: &mut Hierarchy, i: usize, b: [f64; 3]| {
             let a = h.elements[i].area;
@@ -398,7 +408,7 @@ mod tests {
         assert_eq!(h.tolerance(3), 1e-3);
         set(&mut h, 0, [0.01, 2.0, 2.0]);
         h.typical = h.typical_radiosity();
-        assert_eq!(h.tolerance(0), 1e-3 * DIM_SHARE);
+        assert_eq!(h.tolerance(0), 1e-3 * h.rules.dim_share);
         // a child of the bright north wall lying in a shadow, at a quarter of the typical
         let child = h.split(3);
         let typical = h.typical;
