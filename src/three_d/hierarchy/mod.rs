@@ -90,6 +90,10 @@ struct Hierarchy<'g> {
     /// The typical reflected radiosity per channel (area-weighted mean over the non-emitting
     /// surfaces) of the last solve; 0 before the first ([`tolerance`]).
     typical: [f64; 3],
+    /// Whether the links are judged with a solve's B (after the first solve): B, not only
+    /// E, then weighs the rays and the receiving members' visible fractions. Not the
+    /// typical B being positive: in a furnace every surface emits, and there is none.
+    solved: bool,
     /// Largest channel of ρ per surface.
     rho: Vec<f64>,
     /// The weights w_RS of the oracle for inter-reflected light, per pair of document
@@ -193,6 +197,7 @@ impl<'g> Hierarchy<'g> {
             sizing,
             threshold: epsilon * emax,
             typical: [0.0; 3],
+            solved: false,
             indirect: tolerance::indirect_weights(geo, quads, &groups),
             rho: quads
                 .iter()
@@ -319,10 +324,9 @@ impl<'g> Hierarchy<'g> {
         sum
     }
 
-    /// Whether B is known: a solve has been made (the typical B is only E before the first,
-    /// which is 0 over the surfaces that emit nothing).
+    /// Whether B is known: a solve has been made and the links are being judged again.
     fn b_known(&self) -> bool {
-        self.typical.iter().any(|&b| b > 0.0)
+        self.solved
     }
 
     /// Re-evaluates every link with the current B; returns how many were refined.
@@ -331,6 +335,7 @@ impl<'g> Hierarchy<'g> {
         // area where they emit nothing rather than by the light they send
         // ([`Hierarchy::cluster_visibility`]): every one is judged again
         let unlit = !self.b_known();
+        self.solved = true;
         self.typical = self.typical_radiosity();
         for root in 0..self.quads.len() {
             self.measure_detail(root as u32);
@@ -1178,6 +1183,7 @@ mod tests {
         assert!(unlit.len() > 10, "{} partly visible links", unlit.len());
         while h.sweep() > 1e-6 {}
         h.typical = h.typical_radiosity();
+        h.solved = true;
         let (links, hidden) = (h.links.len(), h.hidden.len());
         let mut kept = std::mem::take(&mut h.links);
         let lit = h.relight(&mut kept);

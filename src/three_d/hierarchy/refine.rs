@@ -1008,6 +1008,7 @@ pub(super) mod tests {
             // partly visible pair carries its judging rays' fraction to the first solve)
             h.threshold = f64::INFINITY;
             h.typical = [1.0; 3];
+            h.solved = true;
             assert_eq!(rays(&h, floor, light), want[0], "size {size}");
             if size > 4.0 {
                 assert!(!h.splittable(floor) && !h.splittable(light));
