@@ -7,7 +7,10 @@ mod tracer;
 use rand::rngs::SmallRng;
 use rand::SeedableRng;
 use serde_json::{json, Value};
-use support::{grid_mesh, meshed_walls, room_walls, row_of_books, scene_file, WINDOW};
+use support::{
+    grid_mesh, meshed_walls, room_lit_through_its_ceiling, room_walls, row_of_books, scene_file,
+    WINDOW,
+};
 use tracer::{compare, reference, Comparison, Tracer, V3};
 use wavrad::job;
 use wavrad::progress::Silent;
@@ -319,21 +322,9 @@ fn a_room_lit_through_its_ceiling() {
     // before coarse receivers were split before their sources
     // ([`wavrad::three_d::rules::Rules::receiver_first_level`]), 1.49 % and 6.98 %, with
     // the walls' corner cells 5 % and 36 % bright
-    let wall = |name: &str, corners: Value, rho: Value| json!({ "name": name, "corners": corners, "reflectance": rho });
-    let doc = json!({
-        "scene": { "kind": "3d", "surfaces": [
-            wall("floor", json!([[0, 0, 0], [0, 0, 4], [4, 0, 4], [4, 0, 0]]), json!(0.6)),
-            { "name": "ceiling", "corners": [[0, 3, 0], [4, 3, 0], [4, 3, 4], [0, 3, 4]],
-              "reflectance": 0.8, "emission": 20.0,
-              "emission_region": { "s": [0.4, 0.6], "t": [0.4, 0.6] } },
-            wall("back", json!([[0, 0, 4], [0, 3, 4], [4, 3, 4], [4, 0, 4]]), json!([0.7, 0.6, 0.3])),
-            wall("front", json!([[0, 0, 0], [4, 0, 0], [4, 3, 0], [0, 3, 0]]), json!(0.5)),
-            wall("left", json!([[4, 0, 0], [4, 0, 4], [4, 3, 4], [4, 3, 0]]), json!([0.2, 0.3, 0.7])),
-            wall("right", json!([[0, 0, 0], [0, 3, 0], [0, 3, 4], [0, 0, 4]]), json!(0.7)),
-        ]},
-        "solver": { "method": "hierarchical", "order": 1, "resolution": 32, "epsilon": 1e-3 },
-        "output": { "grid": 8 }
-    });
+    let doc = room_lit_through_its_ceiling(
+        json!({ "method": "hierarchical", "order": 1, "resolution": 32, "epsilon": 1e-3 }),
+    );
     let reference = reference(&doc, 256);
     for (order, means, net) in [(1, 0.002, 0.005), (0, 0.02, 0.025)] {
         let mut doc = doc.clone();

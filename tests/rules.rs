@@ -66,26 +66,6 @@ fn necessary_for_the_gallery(
     );
 }
 
-/// A 4 × 3 × 4 room with a flush light in the middle of its ceiling (`tests/path_traced.rs`,
-/// `a_room_lit_through_its_ceiling`).
-fn room_lit_through_its_ceiling() -> Value {
-    let wall = |name: &str, corners: Value, rho: Value| json!({ "name": name, "corners": corners, "reflectance": rho });
-    json!({
-        "scene": { "kind": "3d", "surfaces": [
-            wall("floor", json!([[0, 0, 0], [0, 0, 4], [4, 0, 4], [4, 0, 0]]), json!(0.6)),
-            { "name": "ceiling", "corners": [[0, 3, 0], [4, 3, 0], [4, 3, 4], [0, 3, 4]],
-              "reflectance": 0.8, "emission": 20.0,
-              "emission_region": { "s": [0.4, 0.6], "t": [0.4, 0.6] } },
-            wall("back", json!([[0, 0, 4], [0, 3, 4], [4, 3, 4], [4, 0, 4]]), json!([0.7, 0.6, 0.3])),
-            wall("front", json!([[0, 0, 0], [4, 0, 0], [4, 3, 0], [0, 3, 0]]), json!(0.5)),
-            wall("left", json!([[4, 0, 0], [4, 0, 4], [4, 3, 4], [4, 3, 0]]), json!([0.2, 0.3, 0.7])),
-            wall("right", json!([[0, 0, 0], [0, 3, 0], [0, 3, 4], [0, 0, 4]]), json!(0.7)),
-        ]},
-        "solver": { "method": "hierarchical" },
-        "output": { "grid": 8 }
-    })
-}
-
 /// Coarse receivers first: without it a receiver's one polynomial holds the curvature of
 /// many small links from a large source, and the cells of the walls near their corners go
 /// wrong while every surface mean stays right. The two scenes' requirements are those of
@@ -98,7 +78,7 @@ fn coarse_receivers_first_are_necessary() {
     for (label, doc, per_side, bound) in [
         (
             "room lit through its ceiling",
-            room_lit_through_its_ceiling(),
+            support::room_lit_through_its_ceiling(json!({ "method": "hierarchical" })),
             128,
             0.005,
         ),

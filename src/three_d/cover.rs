@@ -867,14 +867,7 @@ mod tests {
             let out = crate::three_d::geometry::sub(q.at(0.5, 0.5), [3.5, 0.5, 3.75]);
             assert!(dot(q.n, out) > 0.0, "the box's faces point out");
         }
-        let bvh = Bvh::occluders(&quads);
-        let masks = Mask::of_scene(
-            &bvh,
-            &Bvh::new(&quads),
-            &each_alone(quads.len()),
-            &Rules::DEFAULT,
-            |_| 8,
-        );
+        let masks = masks_alone(&quads);
         assert!(masks[1..].iter().all(Option::is_none));
         let m = masks[0].as_ref().expect("the floor is stood on");
         assert!(m.covered(3.5 / 8.0, 3.0 / 8.0));
@@ -956,16 +949,7 @@ mod tests {
         let quads = ceiling(0.01);
         assert!(quads[0].n[1] < 0.0 && quads[1].n[1] < 0.0, "both face down");
         assert!(lidded(&Bvh::new(&quads), 0) && !lidded(&Bvh::new(&quads), 1));
-        let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(
-            &bvh,
-            &Bvh::new(&quads),
-            &each_alone(quads.len()),
-            &Rules::DEFAULT,
-            |_| 8,
-        )
-        .remove(0)
-        .expect("covered");
+        let m = masks_alone(&quads).remove(0).expect("covered");
         // the ceiling's s runs along x and t along z: the panel is [0.375, 0.625]²
         assert!(m.covered(0.5, 0.5) && m.covered(0.4, 0.6));
         assert!(!m.covered(0.3, 0.5) && !m.covered(0.5, 0.7) && !m.covered(0.1, 0.1));
@@ -985,6 +969,20 @@ mod tests {
     /// Each patch its own surface.
     fn each_alone(n: usize) -> Vec<Vec<u32>> {
         (0..n as u32).map(|p| vec![p]).collect()
+    }
+
+    /// The masks of `quads`, each patch a surface of its own, on an 8 × 8 grid, by the
+    /// default rules.
+    fn masks_alone(quads: &[Parallelogram]) -> Vec<Option<Mask>> {
+        let all = Bvh::new(quads);
+        let groups = each_alone(quads.len());
+        Mask::of_scene(
+            &Bvh::occluders(quads),
+            &all,
+            &groups,
+            &Rules::DEFAULT,
+            |_| 8,
+        )
     }
 
     /// A `w × h` grid over parallelogram `c`, two triangles a cell, facing as `c` does.
@@ -1123,16 +1121,7 @@ mod tests {
     fn masked_grams_are_the_integrals_over_the_exposed_part() {
         // the foot's edge z = 4.5 halves the finest cell z ∈ [4, 5], x ∈ [3, 4]
         let quads = floor_with_box([2.0, 3.0], [5.0, 4.5]);
-        let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(
-            &bvh,
-            &Bvh::new(&quads),
-            &each_alone(quads.len()),
-            &Rules::DEFAULT,
-            |_| 8,
-        )
-        .remove(0)
-        .expect("mask");
+        let m = masks_alone(&quads).remove(0).expect("mask");
         for k in 1..=4 {
             let Exposure::Partial(p) = m.exposure([0.5, 0.625], [0.375, 0.5], k) else {
                 panic!("cut")
@@ -1194,16 +1183,7 @@ mod tests {
     fn a_sliver_sends_what_its_exposed_part_determines() {
         let exposure = |edge: f64, k: usize| {
             let quads = floor_with_box([2.0, 3.0], [5.0, edge]);
-            let bvh = Bvh::occluders(&quads);
-            let m = Mask::of_scene(
-                &bvh,
-                &Bvh::new(&quads),
-                &each_alone(quads.len()),
-                &Rules::DEFAULT,
-                |_| 8,
-            )
-            .remove(0)
-            .expect("mask");
+            let m = masks_alone(&quads).remove(0).expect("mask");
             match m.exposure([0.5, 0.625], [0.375, 0.5], k) {
                 Exposure::Partial(p) => p,
                 other => panic!("{other:?}"),

@@ -1,7 +1,7 @@
 //! Helpers shared by the numerical tests: documents, solves and error measures.
 #![allow(dead_code)]
 
-use serde_json::Value;
+use serde_json::{json, Value};
 use wavrad::job::{self, Outcome};
 use wavrad::progress::Silent;
 use wavrad::scene::{parse_value, Job, Limits};
@@ -232,4 +232,24 @@ pub fn row_of_books() -> Value {
         z += w + 0.003;
     }
     serde_json::json!({"positions": positions, "triangles": triangles})
+}
+
+/// A 4 × 3 × 4 room with a flush light in the middle of its ceiling (an emission region), one
+/// coloured wall and one tinted one, nothing inside, solved with `solver` on an 8 × 8 grid.
+pub fn room_lit_through_its_ceiling(solver: Value) -> Value {
+    let wall = |name: &str, corners: Value, rho: Value| json!({ "name": name, "corners": corners, "reflectance": rho });
+    json!({
+        "scene": { "kind": "3d", "surfaces": [
+            wall("floor", json!([[0, 0, 0], [0, 0, 4], [4, 0, 4], [4, 0, 0]]), json!(0.6)),
+            { "name": "ceiling", "corners": [[0, 3, 0], [4, 3, 0], [4, 3, 4], [0, 3, 4]],
+              "reflectance": 0.8, "emission": 20.0,
+              "emission_region": { "s": [0.4, 0.6], "t": [0.4, 0.6] } },
+            wall("back", json!([[0, 0, 4], [0, 3, 4], [4, 3, 4], [4, 0, 4]]), json!([0.7, 0.6, 0.3])),
+            wall("front", json!([[0, 0, 0], [4, 0, 0], [4, 3, 0], [0, 3, 0]]), json!(0.5)),
+            wall("left", json!([[4, 0, 0], [4, 0, 4], [4, 3, 4], [4, 3, 0]]), json!([0.2, 0.3, 0.7])),
+            wall("right", json!([[0, 0, 0], [0, 3, 0], [0, 3, 4], [0, 0, 4]]), json!(0.7)),
+        ]},
+        "solver": solver,
+        "output": { "grid": 8 }
+    })
 }

@@ -1059,6 +1059,13 @@ mod tests {
         Hierarchy::new(geo, quads, 1, sizing, 1e-3, &Rules::default())
     }
 
+    /// The hierarchy of `quads` at order 1 and ε = 1e-3, the document's default element
+    /// size and rules, before any link.
+    pub(super) fn at_defaults<'g>(geo: &'g Geometry, quads: &'g [Quad]) -> Hierarchy<'g> {
+        let sizing = Sizing::new(&geo.quads, None, None);
+        Hierarchy::new(geo, quads, 1, sizing, 1e-3, &Rules::default())
+    }
+
     /// A 4 × 4 m ceiling at height 2 facing down: a mesh of 4 × 4 squares, each split along
     /// its diagonal.
     fn ceiling() -> serde_json::Value {
@@ -1143,14 +1150,7 @@ mod tests {
     fn a_solve_whose_b_leaves_the_physical_bound_has_diverged() {
         let quads = super::refine::tests::cube();
         let geo = Geometry::new(&quads);
-        let mut h = Hierarchy::new(
-            &geo,
-            &quads,
-            1,
-            Sizing::new(&geo.quads, None, None),
-            1e-3,
-            &Rules::default(),
-        );
+        let mut h = at_defaults(&geo, &quads);
         let set = |h: &mut Hierarchy, i: usize, b: f64| {
             let a = h.elements[i].area;
             h.elements[i].b[0] = [b * a.sqrt(); 3];

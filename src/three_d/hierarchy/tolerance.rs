@@ -269,9 +269,8 @@ impl Hierarchy<'_> {
 mod tests {
     use super::*;
     use crate::three_d::hierarchy::refine::tests::cube;
-    use crate::three_d::hierarchy::sizing::Sizing;
     use crate::three_d::hierarchy::surface_groups;
-    use crate::three_d::rules::Rules;
+    use crate::three_d::hierarchy::tests::at_defaults;
 
     /// The form factors of a unit cube's faces in closed form (Howell's catalogue, C-14 and
     /// C-11): to the opposite face and to an adjacent one.
@@ -305,14 +304,7 @@ mod tests {
             "{w:?}"
         );
         assert!((w.between(1, 0) - 5.0).abs() < 0.05, "{w:?}");
-        let h = Hierarchy::new(
-            &geo,
-            quads,
-            1,
-            Sizing::new(&geo.quads, None, None),
-            1e-3,
-            &Rules::default(),
-        );
+        let h = at_defaults(&geo, quads);
         assert_eq!(h.indirect, w);
     }
 
@@ -382,14 +374,7 @@ mod tests {
         let mut quads = cube();
         quads[2].material.reflectance = [0.0, 0.5, 0.5];
         let geo = Geometry::new(&quads);
-        let mut h = Hierarchy::new(
-            &geo,
-            &quads,
-            1,
-            Sizing::new(&geo.quads, None, None),
-            1e-3,
-            &Rules::default(),
-        );
+        let mut h = at_defaults(&geo, &quads);
         assert_eq!(h.tolerance(0), 1e-3);
         let set = |h: &mut Hierarchy, i: usize, b: [f64; 3]| {
             let a = h.elements[i].area;
