@@ -48,9 +48,9 @@ const SUB: usize = 16;
 const CUTOFF: f64 = 1e-3;
 
 /// The relative eigenvalue below which an element of `k` × `k` functions does not send an
-/// eigenvector ([`Rules::sending_share`], `share`): the least relative eigenvalue of the Gram matrix of k
-/// Legendre polynomials on half of their interval (and so of a square half covered, their
-/// tensor product) times that share, and no less than [`CUTOFF`].
+/// eigenvector ([`Rules::sending_share`], `share`): the least relative eigenvalue of the Gram
+/// matrix of k Legendre polynomials on half of their interval (and so of a square half
+/// covered, their tensor product) times that share, and no less than [`CUTOFF`].
 fn sending_cutoff(k: usize, share: f64) -> f64 {
     if k < 2 {
         return CUTOFF;
@@ -582,8 +582,8 @@ fn clip_inside(a: [f64; 2], b: [f64; 2], tri: bool) -> Option<[[f64; 2]; 2]> {
 }
 
 /// For each patch i, whether another surface lies flat against it, facing the same way,
-/// closer to it than `gap` ([`Rules::lid_gap`]) of its own width ([`widths`]), over part of it: a ceiling
-/// light hung a little below the ceiling, a rug on a floor. The ceiling behind the light sees
+/// closer to it than `gap` ([`Rules::lid_gap`]) of its own width ([`widths`]), over part of
+/// it: a ceiling light hung a little below the ceiling, a rug on a floor. The ceiling behind the light sees
 /// only the light's back through a sliver at grazing angles, so it is dark up to the light's
 /// outline, where one polynomial over both sides would smear it (on the Cornell box without
 /// its blocks, the light 1 unit below the ceiling: the four cells above it 40 % bright, those

@@ -31,8 +31,8 @@ pub struct Rules {
     /// standing surface hides up to half of what the receiver sees, and rays drawn from inside
     /// a coarse receiver mostly miss that shadow. On the Cornell box's floor in front of the
     /// short block, 1 / 5 / 10 units from its foot, the whole tolerance left B +40 / +24 /
-    /// +16 % bright; half of it, +14 / +3 / −0.4 %, for 65 k → 70 k links (a quarter: +4 / −4 /
-    /// −5 %, 77 k). 1 turns the rule off.
+    /// +16 % bright; half of it, +14 / +3 / −0.4 %, for 65 k → 70 k links (a quarter: +4 /
+    /// −4 / −5 %, 77 k). 1 turns the rule off.
     pub contact_share: f64,
     /// **Dim receivers**: the least share of the tolerance for a receiver whose own B is
     /// below the typical B (the share is their ratio, `three_d::hierarchy`'s `tolerance`).

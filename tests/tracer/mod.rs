@@ -401,7 +401,6 @@ impl Tracer {
     /// that direction meets a front face. Returns the light points' part and, when the
     /// direction meets a front face, that patch and what it adds; `None` when it meets the back
     /// of a surface (x is inside a solid: a covered point, which receives nothing).
-    #[allow(dead_code)]
     pub fn one_bounce(
         &self,
         x: V3,

@@ -1476,8 +1476,8 @@ mod tests {
         assert!(h.elements.iter().any(|e| e.sent0()[0] > 0.0));
     }
 
-    /// Ends closer than [`Rules::separation`] times their size are split whatever their estimate
-    /// (there the ends are not points): the tile and the light 2 above it (diameter 2.83) are
+    /// Ends closer than [`Rules::separation`] times their size are split whatever their
+    /// estimate (there the ends are not points): the tile and the light 2 above it (diameter 2.83) are
     /// split at any tolerance, and the light's halves (diameter 2.24 at distance 2) as well,
     /// its quarters (1.41) are linked; 4 above, the light is linked whole.
     #[test]

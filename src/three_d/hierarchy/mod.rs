@@ -81,9 +81,6 @@ struct Hierarchy<'g> {
     /// The finest level of each surface's quadtree, by [`sizing`].
     levels: Vec<u32>,
     sizing: Sizing,
-    /// Receivers above this level are split before their sources
-    /// ([`Rules::receiver_first_level`]).
-    receiver_first: u32,
     /// The constants of the rules beyond the oracle's estimate.
     rules: Rules,
     threshold: f64,
@@ -191,7 +188,6 @@ impl<'g> Hierarchy<'g> {
             filters: Filters::of_order(order),
             tri_basis: TriangleBasis::of_order(order),
             k,
-            receiver_first: rules.receiver_first(order),
             rules: *rules,
             levels,
             sizing,

@@ -26,8 +26,8 @@
 //! above ε times the brightest emission (less on a dim receiver, [`super::tolerance`]), an
 //! element is split (down to the
 //! finest level allowed: the source when D_S is most of the error, else the larger, except that
-//! a receiver coarser than [`Rules::receiver_first_level`] goes first, and only where the split lowers the
-//! estimate: `Hierarchy::splits`) and its children are linked instead;
+//! a receiver coarser than [`Rules::receiver_first_level`] goes first, and only where the
+//! split lowers the estimate: `Hierarchy::splits`) and its children are linked instead;
 //! otherwise the pair becomes a link whose k² × k² block is integrated by [`crate::three_d::transfer`]
 //! and scaled by the visible fraction. That fraction comes from rays that did not judge the
 //! pair: the verdict depends on its rays (a pair all of whose rays passed is accepted where
@@ -360,10 +360,11 @@ impl Hierarchy<'_> {
         }
     }
 
-    /// Whether receiver `r` is above [`Hierarchy::receiver_first`]: split before its source
-    /// when a pair is over the tolerance through the kernel's variation.
+    /// Whether receiver `r` is above the level of [`Rules::receiver_first_level`] at this
+    /// order: split before its source when a pair is over the tolerance through the kernel's
+    /// variation.
     fn coarse(&self, r: u32) -> bool {
-        self.elements[r as usize].level < self.receiver_first
+        self.elements[r as usize].level < self.rules.receiver_first(self.k - 1)
     }
 
     pub(super) fn splittable(&self, e: u32) -> bool {

@@ -30,10 +30,10 @@
 //!    relative accuracy of the others. A receiver element whose mean B is below the typical B
 //!    (the area-weighted mean over the non-emitting surfaces, from the solve before) in any
 //!    channel its surface reflects gets the ratio as its share of the tolerance, the least over
-//!    those channels, down to [`Rules::dim_share`]. The element's own B, not its surface's: the floor
-//!    in front of the Cornell box's short block, in the block's shadow at a tenth of the floor's
-//!    mean, came out 28 % bright at its foot with the floor's share. Before the first solve B
-//!    is only E, and the whole tolerance holds.
+//!    those channels, down to [`Rules::dim_share`]. The element's own B, not its surface's:
+//!    the floor in front of the Cornell box's short block, in the block's shadow at a tenth of
+//!    the floor's mean, came out 28 % bright at its foot with the floor's share. Before the
+//!    first solve B is only E, and the whole tolerance holds.
 
 use super::Hierarchy;
 use crate::scene::Quad;
@@ -230,8 +230,8 @@ fn form_factor(points: &[(V3, V3)], pieces: &[([V3; 4], f64)]) -> f64 {
 impl Hierarchy<'_> {
     /// The oracle's tolerance for receiver `r`: ε times the brightest emission, times the
     /// share of a dim receiver (rule 2 of the module's doc): the least over the channels that
-    /// its surface reflects of its mean B over the typical B, within [`Rules::dim_share`] and 1 (1
-    /// before the first solve).
+    /// its surface reflects of its mean B over the typical B, within [`Rules::dim_share`] and
+    /// 1 (1 before the first solve).
     pub(super) fn tolerance(&self, r: u32) -> f64 {
         let el = &self.elements[r as usize];
         let reflectance = self.quads[el.piece.surface].material.reflectance;
