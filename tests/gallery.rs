@@ -153,15 +153,14 @@ fn a_small_object_converges_as_epsilon_shrinks() {
 
 /// Two icospheres (320 and 80 triangles) and two turned boxes, each one mesh, in a room of
 /// parallelograms: at the defaults every surface's mean within 1 % of the reference, beyond
-/// four of its standard errors. (Not yet every triangle within 5 %: those at the bottom of the
-/// ball that rests on the floor, whose B is a tenth of the ball's mean, see little but the
-/// floor's shadow 3 cm below them, which the floor's links get right only to the floor's
-/// tolerance; they come out 126 % too bright beyond the noise at ε = 1e-3, 24 % at 2.5e-4.
-/// The floor's cell around the contact point is three times its reference, 0.035 against
-/// 0.011: the links from the walls into that cell's ancestors are partly visible, with one
-/// visible fraction per quarter or step cell, and the visibility falls to 0 at the contact
-/// point inside it; each link is within the tolerance, and their errors share a sign. At
-/// ε = 1e-4 with `min_element_size` 0.06, 3.5 M links, the cell is still 0.018.)
+/// four of its standard errors. (Not yet every triangle within 5 %: the two at the bottom of
+/// the small ball that rests on the floor come out 8.7 % and 6.9 % bright beyond the noise at
+/// ε = 1e-3. They see little but the floor 6 cm below them, and their links from it deliver
+/// 5–7 % more than the floor's own B sends there (the one-bounce residual of
+/// `examples/residual.rs`), the floor under them right to 1 %. The big ball's bottom, 125 %
+/// off before the shadow budget (`hierarchy::shadows`: the walls' partly visible links into
+/// the floor's element that holds its contact point, each within the tolerance, all sending
+/// light into its shadow), is within 0.8 %.)
 #[test]
 fn meshes_on_a_floor() {
     let g = gaps(&gallery("meshes-on-a-floor"), 64, 4.0);

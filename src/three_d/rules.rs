@@ -9,14 +9,16 @@
 //!
 //! `tests/rules.rs` solves two scenes with a rule turned off (`Rules::without_*`) against the
 //! path tracer: each meets its requirement with every rule and misses it without that one
-//! (coarse receivers first, lids). The rules whose need is not one scene's accuracy are held
+//! (coarse receivers first, lids, the shadow budget). The rules whose need is not one scene's accuracy are held
 //! by the unit tests of the code that applies them (dim receivers, partly covered senders,
 //! separated clusters). The contact lines' share is not shown necessary on two scenes: since
 //! coarse receivers are split first, it changes the Cornell box (cell means 0.34 % from the
 //! tracer either way) and the floor in front of its short block (+6.2 % against +6.4 % on
 //! the face lit only by that floor) by less than the reference's noise, and only the small
 //! cube in a large room needs it (its worst face 0.97 % beyond the noise with it, 1.69 %
-//! without). It stays until an error budget per receiver replaces it.
+//! without). The shadow budget, a budget per receiver for the partly visible links, does not
+//! replace it: the small cube's worst cell is 4.1 % beyond the noise with the contact lines
+//! and 5.2 % without them, with the budget.
 //!
 //! Numerical constants that are not rules (the grid of the visible fraction, the quadrature
 //! of a block, the budget of links) stay with the code they size.
@@ -78,7 +80,10 @@ pub struct Rules {
     /// (the Cornell box without blocks, its light 1 unit below the ceiling: the four cells
     /// above it 40 % bright, those around 8 % dark), and a smeared element sends light from a
     /// polynomial darkened by its dark part through a visible fraction lowered by the same
-    /// part (a rug 5 mm above a meshed floor left the room 1–2 % dark). 0 turns it off.
+    /// part (a rug 5 mm above a meshed floor left the room 1–2 % dark). Since the shadow
+    /// budget ([`Rules::shadow_share`]), the hung light's ceiling meets the gallery's
+    /// requirement without lids as well; a rug does not (the floor under it comes out lit,
+    /// and the room around the meshed one 1.5 % dark). 0 turns it off.
     pub lid_gap: f64,
     /// **Separated clusters**: the least distance between the boxes of a cluster link's ends,
     /// in their larger diameter. The error it bounds: taking both ends as points is a fair
@@ -88,6 +93,17 @@ pub struct Rules {
     /// source has when the link is accepted: a dark source passes the oracle at any distance
     /// before the first solve.
     pub separation: f64,
+    /// **Shadow budget**: the share of a leaf's tolerance that the errors of the partly
+    /// visible links into it and its ancestors may add up to, on each of its step cells
+    /// (`three_d::hierarchy`'s `shadows`). The error it bounds: the oracle holds each link
+    /// alone to the tolerance, and bounds a partly visible one by its whole transfer, so such
+    /// links are kept at any level while each carries less than the tolerance; but they smear
+    /// their shadows over their receivers the same way (where a ball rests on a floor, every
+    /// wall's link into the floor's element that holds the contact point sends light into the
+    /// ball's shadow), and their errors add up with one sign. The gallery's meshes on a floor:
+    /// the ball's bottom triangles 125 % off the tracer beyond its noise without it, at the
+    /// defaults. Infinity turns it off.
+    pub shadow_share: f64,
 }
 
 impl Default for Rules {
@@ -105,6 +121,7 @@ impl Rules {
         sending_share: 0.05,
         lid_gap: 0.02,
         separation: 1.0,
+        shadow_share: 1.0,
     };
 
     /// The default rules without the contact lines' share.
@@ -127,6 +144,14 @@ impl Rules {
     pub fn without_lids() -> Rules {
         Rules {
             lid_gap: 0.0,
+            ..Rules::default()
+        }
+    }
+
+    /// The default rules without the shadow budget.
+    pub fn without_shadow_budget() -> Rules {
+        Rules {
+            shadow_share: f64::INFINITY,
             ..Rules::default()
         }
     }
@@ -159,6 +184,7 @@ mod tests {
             (Rules::without_contact_lines(), "contact"),
             (Rules::without_receivers_first(), "receivers"),
             (Rules::without_lids(), "lids"),
+            (Rules::without_shadow_budget(), "shadows"),
         ] {
             let fields = [
                 off.contact_share != d.contact_share,
@@ -167,6 +193,7 @@ mod tests {
                 off.dim_share != d.dim_share,
                 off.sending_share != d.sending_share,
                 off.separation != d.separation,
+                off.shadow_share != d.shadow_share,
             ];
             assert_eq!(fields.iter().filter(|&&f| f).count(), 1, "{changed}");
         }

@@ -17,7 +17,9 @@
 //! (a Jacobi sweep of B = E + ρ K B in the multiresolution basis; with the document's
 //! `"gauss-seidel"`, both steps patch by patch, each patch's gather reading the B that the
 //! patches before it got in the same sweep) to the solver's tolerance,
-//! then re-refines the links with the new B ("BF refinement") until no link changes. Once the
+//! then re-refines the links with the new B ("BF refinement", with the shadow budget of
+//! [`shadows`] on the sum of the partly visible links' errors at each leaf) until no link
+//! changes. Once the
 //! changes of the sweeps show one dominant mode, B jumps to the sum of their geometric series
 //! ([`crate::methods::extrapolation`]); the sweeps after it go on to the same fixed point.
 //!
@@ -32,6 +34,7 @@ mod clustered;
 mod kernel_error;
 mod links;
 mod refine;
+mod shadows;
 mod sizing;
 mod tolerance;
 mod tree;
@@ -340,6 +343,20 @@ impl<'g> Hierarchy<'g> {
         // peak memory of a 10⁵-triangle job
         let mut keep = std::mem::take(&mut self.links);
         let mut again = Vec::new();
+        // the shadow budget ([`shadows`]): partly visible links whose smears add up over a
+        // leaf's tolerance give way to links into their receivers' children
+        let marked = self.over_shadow_budget(&keep);
+        let mut at = 0;
+        let shadowed = keep.extract_if(|_| {
+            at += 1;
+            marked[at - 1]
+        });
+        drop(marked);
+        for l in shadowed.ends() {
+            let first = self.split(l.recv);
+            again.extend((first..first + 4).map(|c| (c, l.src)));
+        }
+        let shadowed = shadowed.len();
         let outgrown = keep.extract_if(|l| self.outgrown(l.recv, l.src, l.factors));
         again.extend(outgrown.ends().iter().map(|l| (l.recv, l.src)));
         let lit = self.relight(&mut keep);
@@ -386,7 +403,7 @@ impl<'g> Hierarchy<'g> {
         let mut pending = Vec::new();
         self.refine_all(again, &mut pending, progress)?;
         // a pair may come back unrefined (its estimate changed): keep its block
-        let mut refined = blocks.len() + reopened;
+        let mut refined = blocks.len() + reopened + shadowed;
         pending.retain(|p| match blocks.remove(&(p.0, p.1)) {
             Some(i) => {
                 refined -= 1;

@@ -40,9 +40,14 @@
 //! source that an occluder hides from a receiver is most often in the occluder's shadow too.
 //! The partly visible links made before the first solve carry the judging rays' fraction
 //! through it, and take the share of the light from fresh rays after it.
+//!
+//! Each estimate bounds one link; the errors of partly visible links add up where their
+//! shadows fall together, and [`super::shadows`] holds their sum on each leaf to the leaf's
+//! tolerance after every solve.
 
 use super::clustered::{ClusterLink, ClusterVerdict};
 use super::links::Links;
+use super::shadows::Cells;
 use super::tree::{push, Element, NONE};
 use super::{Hierarchy, Overrun};
 use crate::progress::{Cancelled, Progress};
@@ -78,7 +83,7 @@ fn holds(v: [[f64; 2]; 3], s: f64, t: f64) -> bool {
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Factors {
     /// F̂: the largest point-to-piece form factor from the receiver to the source.
-    f: f32,
+    pub(super) f: f32,
     /// (d / (d + dist))^(m+1), or 1 when the pair is partly visible.
     smooth: f32,
     /// Whether the receiver touches a contact line and something may come between it and
@@ -88,6 +93,9 @@ pub(super) struct Factors {
     /// rather than of the light: the side of the grid of fresh rays that take its fraction
     /// again, weighted by the light, after the first solve ([`Hierarchy::share_of_light`]).
     pub(super) unlit: Option<u8>,
+    /// The visible fraction on each step cell, where it varies over the receiver: the
+    /// shadow budget's ([`super::shadows`]).
+    pub(super) shadow: Option<Cells>,
 }
 
 /// What the oracle makes of a pair.
@@ -436,6 +444,7 @@ impl Hierarchy<'_> {
             smooth: smooth as f32,
             contact: false,
             unlit: None,
+            shadow: None,
         };
         if let Some(v) = split(unsure) {
             return (v, 0);
@@ -461,6 +470,7 @@ impl Hierarchy<'_> {
                     smooth: 1.0,
                     contact,
                     unlit: None,
+                    shadow: None,
                 },
             );
             if kernel + detail > self.rules.contact_share * thr {
@@ -511,6 +521,7 @@ impl Hierarchy<'_> {
             },
             contact,
             unlit: None,
+            shadow: None,
         };
         if let Some(v) = split(x) {
             return (v, rays);
@@ -792,6 +803,10 @@ impl Hierarchy<'_> {
                     }
                     _ => seen.weigh(&steps, block),
                 }
+                let factors = Factors {
+                    shadow: Cells::of(&seen),
+                    ..factors
+                };
                 Link { recv, src, factors }
             });
         }
@@ -910,6 +925,7 @@ pub(super) mod tests {
             smooth: 1.0,
             contact: true,
             unlit: None,
+            shadow: None,
         };
         let (kernel, detail) = h.error(floor, light, contact);
         assert!(kernel > 0.0);
@@ -1061,6 +1077,7 @@ pub(super) mod tests {
             smooth: 1.0,
             contact: false,
             unlit: None,
+            shadow: None,
         };
         let whole = h.error(floor, light, unsure).0;
         // a tolerance above the estimate before any ray (the kernel's smoothness factor,
