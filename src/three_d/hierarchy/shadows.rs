@@ -50,21 +50,27 @@ use crate::three_d::visibility::Seen;
 pub(super) struct Cells([u8; CELLS / 2]);
 
 impl Cells {
-    /// The cells of a fraction that varies over its receiver; `None` for a uniform one.
+    /// The cells of a fraction that varies over its receiver; `None` for one uniform in
+    /// fifteenths (whose residual would be rounding of either sign).
     pub(super) fn of(seen: &Seen) -> Option<Cells> {
-        if seen.uniform() {
-            return None;
-        }
         let mut packed = [0u8; CELLS / 2];
         for c in 0..CELLS {
             let v = (seen.cell(c).clamp(0.0, 1.0) * 15.0).round() as u8;
             packed[c / 2] |= v << (4 * (c % 2));
         }
-        Some(Cells(packed))
+        let cells = Cells(packed);
+        let first = cells.0[0] & 15;
+        (0..CELLS)
+            .any(|c| cells.nibble(c) != first)
+            .then_some(cells)
+    }
+
+    fn nibble(&self, c: usize) -> u8 {
+        (self.0[c / 2] >> (4 * (c % 2))) & 15
     }
 
     fn get(&self, c: usize) -> f64 {
-        f64::from((self.0[c / 2] >> (4 * (c % 2))) & 15) / 15.0
+        f64::from(self.nibble(c)) / 15.0
     }
 }
 
@@ -226,39 +232,9 @@ impl Hierarchy<'_> {
             stack.push((e, std::array::from_fn(|c| c as u8)));
         }
         if el.is_leaf() {
-            let tol = self.rules.shadow_share * self.tolerance(e);
-            for c in 0..CELLS {
-                if total[c].abs() <= tol {
-                    continue;
-                }
-                // every link that adds to the excess with its sign: splitting only the
-                // largest until the rest is within the tolerance (as if a split link's error
-                // were gone, when its children keep part of it) left the small ball on the
-                // gallery's floor 128 % off at ε = 4e-3 (32 % this way) and 9.5 % at 1e-3
-                // (8.8 %), for 3 % fewer links
-                let mut errors = budget.errors.borrow_mut();
-                for &(a, map) in stack.iter() {
-                    if !self.splittable(a) {
-                        continue;
-                    }
-                    let errors = errors.entry(a).or_insert_with(|| {
-                        // a's links, a run of the links sorted by receiver
-                        let ends = budget.links.ends();
-                        let first = ends.partition_point(|l| l.recv < a);
-                        let last = first + ends[first..].partition_point(|l| l.recv == a);
-                        (first..last)
-                            .filter_map(|i| {
-                                let d = self.shadow_error(budget, i)?;
-                                Some((i, d.map(|x| x as f32)))
-                            })
-                            .collect()
-                    });
-                    for (i, d) in errors.iter() {
-                        if f64::from(d[map[c] as usize]) * total[c] > 0.0 {
-                            marked[*i] = true;
-                        }
-                    }
-                }
+            // a covered leaf receives nothing: the errors on it are not errors
+            if el.receives() {
+                self.mark(e, &total, budget, stack, marked);
             }
         } else {
             let tri = self.geo.quads[el.piece.surface].tri;
@@ -274,6 +250,52 @@ impl Hierarchy<'_> {
         }
         if mine.is_some() {
             stack.pop();
+        }
+    }
+
+    /// Marks the links into leaf `e`'s ancestors on `stack` (and `e`) that add to a cell's
+    /// sum `total` beyond the leaf's tolerance.
+    fn mark(
+        &self,
+        e: u32,
+        total: &[f64; CELLS],
+        budget: &Budget,
+        stack: &[(u32, [u8; CELLS])],
+        marked: &mut [bool],
+    ) {
+        let tol = self.rules.shadow_share * self.tolerance(e);
+        for c in 0..CELLS {
+            if total[c].abs() <= tol {
+                continue;
+            }
+            // every link that adds to the excess with its sign: splitting only the
+            // largest until the rest is within the tolerance (as if a split link's error
+            // were gone, when its children keep part of it) left the small ball on the
+            // gallery's floor 128 % off at ε = 4e-3 (32 % this way) and 9.5 % at 1e-3
+            // (8.8 %), for 3 % fewer links
+            let mut errors = budget.errors.borrow_mut();
+            for &(a, map) in stack.iter() {
+                if !self.splittable(a) {
+                    continue;
+                }
+                let errors = errors.entry(a).or_insert_with(|| {
+                    // a's links, a run of the links sorted by receiver
+                    let ends = budget.links.ends();
+                    let first = ends.partition_point(|l| l.recv < a);
+                    let last = first + ends[first..].partition_point(|l| l.recv == a);
+                    (first..last)
+                        .filter_map(|i| {
+                            let d = self.shadow_error(budget, i)?;
+                            Some((i, d.map(|x| x as f32)))
+                        })
+                        .collect()
+                });
+                for (i, d) in errors.iter() {
+                    if f64::from(d[map[c] as usize]) * total[c] > 0.0 {
+                        marked[*i] = true;
+                    }
+                }
+            }
         }
     }
 }
