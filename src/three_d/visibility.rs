@@ -302,7 +302,7 @@ impl Seen {
     }
 
     /// Whether every cell's fraction is the whole's.
-    pub(super) fn uniform(&self) -> bool {
+    fn uniform(&self) -> bool {
         (0..CELLS).all(|c| self.cell(c) == self.whole)
     }
 

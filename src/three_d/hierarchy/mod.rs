@@ -19,9 +19,9 @@
 //! patches before it got in the same sweep) to the solver's tolerance,
 //! then re-refines the links with the new B ("BF refinement", with the shadow budget of
 //! [`shadows`] on the sum of the partly visible links' errors at each leaf) until no link
-//! changes. Once the
-//! changes of the sweeps show one dominant mode, B jumps to the sum of their geometric series
-//! ([`crate::methods::extrapolation`]); the sweeps after it go on to the same fixed point.
+//! changes. Once the changes of the sweeps show one dominant mode, B jumps to the sum of their
+//! geometric series ([`crate::methods::extrapolation`]); the sweeps after it go on to the same
+//! fixed point.
 //!
 //! Where a solid stands on a surface ([`crate::three_d::cover`]), the elements across the outline of
 //! its foot are split to the finest level before any link is made, and every partly covered

@@ -83,7 +83,7 @@ fn holds(v: [[f64; 2]; 3], s: f64, t: f64) -> bool {
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Factors {
     /// F̂: the largest point-to-piece form factor from the receiver to the source.
-    pub(super) f: f32,
+    f: f32,
     /// (d / (d + dist))^(m+1), or 1 when the pair is partly visible.
     smooth: f32,
     /// Whether the receiver touches a contact line and something may come between it and
