@@ -265,7 +265,7 @@ impl<'g> Hierarchy<'g> {
             }
         }
         let mut pending = Vec::new();
-        self.refine_all(pairs, &mut pending, progress)?;
+        self.refine_all(pairs, 0, &mut pending, progress)?;
         let mut links = Links::new(self.k.pow(4));
         self.make_links(pending, &mut links, progress)?;
         self.links = links;
@@ -401,7 +401,7 @@ impl<'g> Hierarchy<'g> {
         });
         self.hidden_clusters = hidden_clusters;
         let mut pending = Vec::new();
-        self.refine_all(again, &mut pending, progress)?;
+        self.refine_all(again, keep.len(), &mut pending, progress)?;
         // a pair may come back unrefined (its estimate changed): keep its block
         let mut refined = blocks.len() + reopened + shadowed;
         pending.retain(|p| match blocks.remove(&(p.0, p.1)) {
@@ -1307,6 +1307,42 @@ mod tests {
             ..unbounded
         });
         assert_eq!(made, Err(JobError::TooManyPairs { pairs: 1 }));
+    }
+
+    /// A re-refinement counts the links it keeps against the link budget with those it makes:
+    /// a budget of the links before the second re-refinement, which makes fewer than it keeps
+    /// and refines some, stops it with the link budget; one of the links after lets it finish.
+    #[test]
+    fn a_re_refinement_counts_the_links_it_keeps() {
+        let quads = &corner_under_a_meshed_ceiling();
+        let geo = Geometry::new(quads);
+        let solve = |h: &mut Hierarchy| while h.sweep() > 1e-9 {};
+        let twice_solved = || {
+            let mut h = hierarchy(&geo, quads);
+            h.link_all(&crate::progress::Silent).unwrap();
+            solve(&mut h);
+            h.rerefine(&crate::progress::Silent).unwrap();
+            solve(&mut h);
+            h
+        };
+        let mut h = twice_solved();
+        let before = h.links.len();
+        assert!(h.rerefine(&crate::progress::Silent).unwrap() > 0);
+        let after = h.links.len();
+        assert!(after > before, "{before} → {after} links");
+        let mut h = twice_solved();
+        h.budget.links = before;
+        let made = h.rerefine(&crate::progress::Silent);
+        assert_eq!(
+            made.map_err(|c| stopped(&h, c)),
+            Err(JobError::TooLarge {
+                links: before,
+                order: 1
+            })
+        );
+        let mut h = twice_solved();
+        h.budget.links = after;
+        assert!(h.rerefine(&crate::progress::Silent).is_ok());
     }
 
     /// A level judged in chunks makes the refinement that it makes judged at once: the same

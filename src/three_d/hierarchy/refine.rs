@@ -562,10 +562,13 @@ impl Hierarchy<'_> {
     /// Refines the interactions `pairs` (receiver, source) top-down, appending the accepted
     /// (recv, src, geom, V) to `out` in a fixed order. Each level's pairs are judged in
     /// parallel, in chunks of the budget's `chunk` pairs; the splits they ask for are then
-    /// made in order, so the elements are numbered the same on every run.
+    /// made in order, so the elements are numbered the same on every run. `held` links
+    /// already made stay with the caller meanwhile (a re-refinement's kept ones) and count
+    /// against the budget with those accepted here.
     pub(super) fn refine_all(
         &mut self,
         mut frontier: Vec<(u32, u32)>,
+        held: usize,
         out: &mut Vec<(u32, u32, Factors, Seen)>,
         progress: &dyn Progress,
     ) -> Result<(), Cancelled> {
@@ -573,12 +576,12 @@ impl Hierarchy<'_> {
             let mut next = Vec::new();
             for chunk in frontier.chunks(self.budget.chunk) {
                 progress.check()?;
-                self.within_budget(out.len(), frontier.len())?;
+                self.within_budget(held + out.len(), frontier.len())?;
                 self.judge_level(chunk, out, &mut next, progress)?;
             }
             frontier = next;
         }
-        self.within_budget(out.len(), 0)
+        self.within_budget(held + out.len(), 0)
     }
 
     /// Judges the pairs `chunk` of one level: accepted pairs go to `out` (or the cluster
@@ -687,12 +690,12 @@ impl Hierarchy<'_> {
         Ok(())
     }
 
-    /// Whether the refinement still fits its [`Budget`]: the links made (with `made` more
-    /// accepted and not yet built) and the `pairs` of the frontier. The two are bounded
+    /// Whether the refinement still fits its [`Budget`]: the `links` made or accepted (and
+    /// not yet built) and the `pairs` of the frontier. The two are bounded
     /// apart: a pair waiting to be judged holds [`PAIR_BYTES`], not a block, and many pairs
     /// of a fine level end split, hidden or inert rather than linked.
-    fn within_budget(&mut self, made: usize, pairs: usize) -> Result<(), Cancelled> {
-        self.too_large = if self.links.len() + made > self.budget.links {
+    fn within_budget(&mut self, links: usize, pairs: usize) -> Result<(), Cancelled> {
+        self.too_large = if links > self.budget.links {
             Some(Overrun::Links)
         } else if pairs > self.budget.pairs {
             Some(Overrun::Pairs)
