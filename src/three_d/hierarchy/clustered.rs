@@ -948,7 +948,9 @@ impl Hierarchy<'_> {
             });
             return;
         }
-        // the source's intensity toward the receiver's centre, Σ B̄ A (n · ω)₊ / π
+        // the source's intensity Σ B̄ A (n · ω)₊ / π toward each receiving member where it is
+        // linear in ω there ([`Hierarchy::linear_intensity`]), else toward the receiver's
+        // centre
         let toward = sub(self.centre_of(l.recv), centre);
         let omega = scale(toward, 1.0 / norm(toward));
         let intensity = self.intensity(l.src, omega, emitters);
@@ -957,14 +959,41 @@ impl Hierarchy<'_> {
             let d = sub(centre, x);
             let r2 = dot(d, d);
             let c = dot(n, d);
+            if c <= 0.0 || r2 <= 0.0 {
+                put([0.0; 3]);
+                return;
+            }
+            let r = r2.sqrt();
+            let intensity = self
+                .linear_intensity(l.src, scale(d, -1.0 / r), emitters)
+                .unwrap_or(intensity);
             // (n · −ω) / r² at the member
-            let w = if c > 0.0 && r2 > 0.0 {
-                v * c / (r2 * r2.sqrt()) * area.sqrt()
-            } else {
-                0.0
-            };
+            let w = v * c / (r2 * r) * area.sqrt();
             put(intensity.map(|i| i * w));
         });
+    }
+
+    /// The intensity of `id` toward the unit `omega` where it is linear in ω: an element's
+    /// B̄ A (n · ω)₊ / π, a cluster's Σ_j A_j B̄_j n_j · ω / π when every member faces ω (its
+    /// [`Emitter`]'s J) and 0 when none does; `None` when the members' normal cone straddles
+    /// the plane normal to ω. Taken toward each receiving member rather than toward the
+    /// receiver's centre, the light a planar source sends at a grazing angle to the members
+    /// of a receiver beside it is that angle's: toward the centre of a ball resting on a
+    /// floor, the floor's elements sent its bottom triangles, which they see edge-on, 3–4
+    /// times their light, and the triangles came out 5–7 % bright.
+    fn linear_intensity(&self, id: u32, omega: V3, emitters: &[Emitter]) -> Option<Rgb> {
+        use std::f64::consts::PI;
+        if !is_cluster(id) {
+            let el = &self.elements[id as usize];
+            let c = dot(self.geo.quads[el.piece.surface].n, omega).max(0.0);
+            let w = c * el.area.sqrt() / PI;
+            return Some(el.sent0().map(|b| w * b));
+        }
+        let index = (id & !crate::three_d::cluster::CLUSTER) as usize;
+        match self.clusters.nodes[index].bound.side(omega)? {
+            true => Some(emitters[index].normal.map(|j| dot(j, omega) / PI)),
+            false => Some([0.0; 3]),
+        }
     }
 
     /// The radiant intensity Σ_j B̄_j A_j (n_j · ω)₊ / π of cluster or element `id` toward
@@ -1038,15 +1067,27 @@ impl Hierarchy<'_> {
             return v * alone.irradiance(about, x, nx)[0] / el.area;
         }
         let centre = self.centre_of(l.src);
-        let toward = sub(self.centre_of(l.recv), centre);
-        let omega = scale(toward, 1.0 / norm(toward));
         let (_, ny) = member(l.src, j);
         let d = sub(centre, x);
-        let (cy, cx, r2) = (dot(ny, omega), dot(nx, d), dot(d, d));
-        if cy <= 0.0 || cx <= 0.0 || r2 <= 0.0 {
+        let (cx, r2) = (dot(nx, d), dot(d, d));
+        if cx <= 0.0 || r2 <= 0.0 {
             return 0.0;
         }
-        v * cx * cy / (std::f64::consts::PI * r2 * r2.sqrt())
+        // the direction the source's intensity is taken toward, as the transfer takes it
+        let r = r2.sqrt();
+        let at_member = scale(d, -1.0 / r);
+        let linear = !is_cluster(l.src) || self.clusters.get(l.src).bound.side(at_member).is_some();
+        let omega = if linear {
+            at_member
+        } else {
+            let toward = sub(self.centre_of(l.recv), centre);
+            scale(toward, 1.0 / norm(toward))
+        };
+        let cy = dot(ny, omega);
+        if cy <= 0.0 {
+            return 0.0;
+        }
+        v * cx * cy / (std::f64::consts::PI * r2 * r)
     }
 
     /// How many members receive through a link into `id`.
@@ -1693,5 +1734,105 @@ mod tests {
             .find(|&&r| is_cluster(r) && h.clusters.members(r).len() == 4)
             .expect("one cluster of the two meshes");
         check(&h, both);
+    }
+
+    /// The worst relative error, over the faces of an octahedron of unit diameter resting on
+    /// a floor, of the light that a 1 × 1 square of floor of unit B, `distance` from the
+    /// octahedron's centre, sends each face through one cluster link, against the face's form
+    /// factor to the square (by quadrature); and how many faces it lights.
+    fn octahedron_beside_a_square(distance: f64) -> (f64, usize) {
+        let v = |x: f64, y: f64, z: f64| serde_json::json!([x, y + 0.5, z]);
+        let (h, near, far) = (0.5, distance - 0.5, distance + 0.5);
+        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "floor",
+             "corners": [[near, 0, -0.5], [near, 0, 0.5], [far, 0, 0.5], [far, 0, -0.5]],
+             "reflectance": 0.0, "emission": 1.0},
+            {"name": "octahedron", "mesh": {
+                "positions": [v(h, 0.0, 0.0), v(-h, 0.0, 0.0), v(0.0, h, 0.0), v(0.0, -h, 0.0),
+                              v(0.0, 0.0, h), v(0.0, 0.0, -h)],
+                "triangles": [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4],
+                              [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]},
+             "reflectance": 0.5}]},
+            "solver": {"method": "hierarchical"}});
+        let quads = super::super::tests::patches(&doc);
+        let geo = crate::three_d::projection::Geometry::new(&quads);
+        let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
+        let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3, &Rules::default());
+        let octahedron = *h
+            .clusters
+            .starts
+            .iter()
+            .find(|&&r| is_cluster(r) && h.clusters.members(r).len() == 8)
+            .expect("the octahedron's cluster");
+        let floor = &mut h.elements[0];
+        assert_eq!(floor.piece.surface, 0);
+        floor.b.iter_mut().for_each(|b| *b = [0.0; 3]);
+        floor.b[0] = [floor.area.sqrt(); 3];
+        let link = ClusterLink {
+            recv: octahedron,
+            src: 0,
+            visibility: 1.0,
+            affine: false,
+            smooth: 1.0,
+            sampled: 0.0,
+            members: None,
+        };
+        let mut out = vec![[0.0; 3]; 8];
+        h.cluster_link_irradiance(&link, &h.emitters(), &mut out);
+        let square = &h.geo.quads[0];
+        let (mut worst, mut lit) = (0.0f64, 0);
+        for (k, got) in out.iter().enumerate() {
+            let face = h.clusters.order()[h.clusters.span(octahedron).start + k] as usize;
+            let [a, b, c, _] = h.elements[face].piece.corners(&h.geo.quads);
+            let n = h.geo.quads[face].n;
+            // the face's mean irradiance: 48 × 48 points on the square, 210 on the face
+            let (m, f) = (48, 20);
+            let mut sum = 0.0;
+            for i in 0..m {
+                for j in 0..m {
+                    let (s, t) = ((i as f64 + 0.5) / m as f64, (j as f64 + 0.5) / m as f64);
+                    let y = square.at(s, t);
+                    for p in 0..f {
+                        for q in 0..f - p {
+                            let u = (p as f64 + 1.0 / 3.0) / f as f64;
+                            let w = (q as f64 + 1.0 / 3.0) / f as f64;
+                            let x = add(add(scale(a, 1.0 - u - w), scale(b, u)), scale(c, w));
+                            let d = sub(y, x);
+                            let r2 = dot(d, d);
+                            let (cx, cy) = (dot(n, d), -dot(square.n, d));
+                            if cx > 0.0 && cy > 0.0 {
+                                sum += cx * cy / (std::f64::consts::PI * r2 * r2);
+                            }
+                        }
+                    }
+                }
+            }
+            let want = sum / (m * m) as f64 / (f * (f + 1) / 2) as f64 * square.area;
+            let got = got[1] / h.elements[face].area.sqrt();
+            if want == 0.0 {
+                assert_eq!(got, 0.0, "face {face}");
+                continue;
+            }
+            lit += 1;
+            worst = worst.max((got / want - 1.0).abs());
+        }
+        (worst, lit)
+    }
+
+    /// A planar source's light reaches each member of a cluster beside it at the member's own
+    /// angle, so that the link's error falls with the ends' size over their distance: a square
+    /// of floor beside an octahedron resting on the floor lights the four faces toward it with
+    /// errors that more than halve each time the distance doubles (10.3 %, 3.4 %, 1.3 % at
+    /// 2.5, 5 and 10: the bottom faces see the square at cosines of 0–0.15 at the floor,
+    /// whose variation over them is of the order of their mean, so that the rate lies between
+    /// the first order and the second). Taken toward the octahedron's centre, the bottom faces
+    /// got the cosine at its height, half again their mean, at any distance: 30 %, 40 %, 46 %;
+    /// the bottom triangles of a ball resting on a floor, which the floor's elements lit so at
+    /// 3–4 times their light, came out 5–7 % bright.
+    #[test]
+    fn a_planar_source_lights_each_member_at_its_own_angle() {
+        let at = [2.5, 5.0, 10.0].map(octahedron_beside_a_square);
+        assert!(at.iter().all(|&(_, lit)| lit == 4), "{at:?}");
+        assert!(at[1].0 < at[0].0 / 2.0 && at[2].0 < at[1].0 / 2.0, "{at:?}");
     }
 }
