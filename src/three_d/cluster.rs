@@ -18,15 +18,18 @@
 //! of the receiver (`Bound::before`), the source's sum is carried by a few moments (the
 //! irradiance's numerator is affine in the receiving point; [`crate::three_d::hierarchy`]'s
 //! `Emitter`, expanded to second order), and the error is third order in the source's size
-//! over the distance; otherwise the source's intensity is taken toward the receiver's centre,
+//! over the distance; otherwise the source's intensity is taken toward each receiving member
+//! where it is linear in the direction (an element, or a cluster whose members all face the
+//! member or all face away), else toward the receiver's centre,
 //!
 //! ```text
 //! I_S(ω)   = Σ_{j ∈ S} B̄_j A_j (n_j · ω)₊ / π          (the radiant intensity of S toward ω)
-//! H_i     += V · I_S(ω) · (n_i · (c_S − x_i))₊ / |c_S − x_i|³   (each member i of R at x_i)
+//! H_i     += V · I_S(ω_i) · (n_i · (c_S − x_i))₊ / |c_S − x_i|³   (each member i of R at x_i)
 //! ```
 //!
-//! with V the visible fraction between the two ends, and the error is first order in the
-//! larger end's size. The oracle bounds what each leaves out.
+//! with V the visible fraction between the two ends and ω_i the direction from c_S to x_i (or
+//! to R's centre), and the error is first order in the larger end's size. The oracle bounds
+//! what each leaves out.
 //!
 //! Two clusters interact only if a point of each may be in front of a member of the other:
 //! each cluster's box, the cone of its members' normals and the range of its points along the

@@ -79,8 +79,8 @@ pub(super) struct ClusterLink {
     /// The visible fraction V between the two ends.
     pub(super) visibility: f64,
     /// Whether every member of the source faces every point of the receiver: the light it
-    /// sends is then the affine form of [`Emitter`], else its intensity toward the
-    /// receiver's centre.
+    /// sends is then the affine form of [`Emitter`], else its intensity toward each
+    /// receiving member ([`Hierarchy::linear_intensity`]) or the receiver's centre.
     pub(super) affine: bool,
     /// The oracle's factor for what taking the ends as points leaves out; when partly
     /// visible, 1, or for a receiver at its finest level the factor with the sampling error
