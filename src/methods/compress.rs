@@ -322,10 +322,11 @@ pub(crate) fn ranked<I: Iterator<Item = f64>>(
     values: impl Fn() -> I,
     count: usize,
 ) -> (usize, Vec<(usize, f64)>) {
-    // 2¹⁹ bins of positive floats: the exponent and 8 bits of the mantissa
+    // 2¹⁹ bins of positive floats (their sign bit is 0): the exponent and 8 bits of the
+    // mantissa
     const SHIFT: u32 = 44;
     let bin = |v: f64| (v.to_bits() >> SHIFT) as usize;
-    let mut counts = vec![0usize; 1 << (64 - SHIFT)];
+    let mut counts = vec![0usize; 1 << (63 - SHIFT)];
     for v in values() {
         counts[bin(v)] += 1;
     }

@@ -97,7 +97,7 @@ impl Hierarchy<'_> {
             }
         };
         let count = self.links.len() + self.cluster_links.len();
-        // A_R A_S and A_R A_S K̄² of every link, 0 for those left out
+        // the group of a link's end
         let group = |end: u32| {
             let patch = if is_cluster(end) {
                 self.clusters.members(end)[0] as usize
@@ -106,23 +106,23 @@ impl Hierarchy<'_> {
             };
             group_of[patch]
         };
-        let weights: Vec<(f64, f64)> = (0..count)
-            .into_par_iter()
-            .map(|i| {
-                let (r, s) = match link(i) {
-                    Any::Element(l, _) => (l.recv, l.src),
-                    Any::Cluster(l) => (l.recv, l.src),
-                };
-                let (gr, gs) = (group(r), group(s));
-                if touch.contains(&(gr.min(gs), gr.max(gs))) {
-                    return (0.0, 0.0);
-                }
-                let area = self.end_area(r) * self.end_area(s);
-                (area, area * self.mean_kernel(link(i)).powi(2))
-            })
-            .collect();
-        let (area_sum, kernel_sum) = weights
-            .iter()
+        // A_R A_S and A_R A_S K̄² of a link, 0 for those left out; worked out twice (once for
+        // their sums, in order so that they round alike on every run, once for the
+        // probabilities) rather than held: a million links' pairs were 16 MB at the peak
+        let weight = |i: usize| {
+            let (r, s) = match link(i) {
+                Any::Element(l, _) => (l.recv, l.src),
+                Any::Cluster(l) => (l.recv, l.src),
+            };
+            let (gr, gs) = (group(r), group(s));
+            if touch.contains(&(gr.min(gs), gr.max(gs))) {
+                return (0.0, 0.0);
+            }
+            let area = self.end_area(r) * self.end_area(s);
+            (area, area * self.mean_kernel(link(i)).powi(2))
+        };
+        let (area_sum, kernel_sum) = (0..count)
+            .map(weight)
             .fold((0.0, 0.0), |(a, k), w| (a + w.0, k + w.1));
         let nothing = Sampled {
             value: 0.0,
@@ -132,7 +132,7 @@ impl Hierarchy<'_> {
         if area_sum <= 0.0 {
             return nothing;
         }
-        let probability = |w: &(f64, f64)| {
+        let probability = |w: (f64, f64)| {
             let by_kernel = if kernel_sum > 0.0 {
                 w.1 / kernel_sum
             } else {
@@ -140,11 +140,14 @@ impl Hierarchy<'_> {
             };
             0.5 * (w.0 / area_sum + by_kernel)
         };
-        let mut cumulative = Vec::with_capacity(count);
+        let mut cumulative: Vec<f64> = (0..count)
+            .into_par_iter()
+            .map(|i| probability(weight(i)))
+            .collect();
         let mut acc = 0.0;
-        for w in &weights {
-            acc += probability(w);
-            cumulative.push(acc);
+        for c in cumulative.iter_mut() {
+            acc += *c;
+            *c = acc;
         }
         let samples: Vec<(f64, f64)> = (0..pairs)
             .into_par_iter()
@@ -152,7 +155,8 @@ impl Hierarchy<'_> {
                 let mut rng = SplitMix(pair_seed(0x0e95, i as u64));
                 let u = rng.next_f64() * acc;
                 let pick = cumulative.partition_point(|&c| c <= u).min(count - 1);
-                let p = probability(&weights[pick]);
+                let w = weight(pick);
+                let p = probability(w);
                 if p <= 0.0 {
                     return (0.0, 0.0);
                 }
@@ -168,7 +172,7 @@ impl Hierarchy<'_> {
                     Any::Element(l, block) => self.block_kernel(l, block, &a, &b),
                     Any::Cluster(l) => self.cluster_link_kernel(l, a.member, b.member),
                 };
-                let scale = weights[pick].0 / p;
+                let scale = w.0 / p;
                 (scale * (k - approx).powi(2), scale * k * k)
             })
             .collect();
