@@ -1723,17 +1723,27 @@ mod tests {
     /// Runs `check` on the hierarchy of a document whose two meshes (of two triangles each)
     /// make one cluster of four members, with that cluster.
     fn with_two_meshes(doc: &serde_json::Value, check: impl FnOnce(&Hierarchy, u32)) {
+        with_cluster_of(doc, 4, |h, both| check(h, both));
+    }
+
+    /// Runs `check` on the unlinked hierarchy of a document (order 1, elements down to 1)
+    /// with its top cluster of `members` members.
+    fn with_cluster_of<T>(
+        doc: &serde_json::Value,
+        members: usize,
+        check: impl FnOnce(&mut Hierarchy, u32) -> T,
+    ) -> T {
         let quads = super::super::tests::patches(doc);
         let geo = crate::three_d::projection::Geometry::new(&quads);
         let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
-        let h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3, &Rules::default());
-        let both = *h
+        let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3, &Rules::default());
+        let cluster = *h
             .clusters
             .starts
             .iter()
-            .find(|&&r| is_cluster(r) && h.clusters.members(r).len() == 4)
-            .expect("one cluster of the two meshes");
-        check(&h, both);
+            .find(|&&r| is_cluster(r) && h.clusters.members(r).len() == members)
+            .expect("a cluster of that many members");
+        check(&mut h, cluster)
     }
 
     /// The worst relative error, over the faces of an octahedron of unit diameter resting on
@@ -1754,16 +1764,13 @@ mod tests {
                               [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]},
              "reflectance": 0.5}]},
             "solver": {"method": "hierarchical"}});
-        let quads = super::super::tests::patches(&doc);
-        let geo = crate::three_d::projection::Geometry::new(&quads);
-        let sizing = super::super::sizing::Sizing::new(&geo.quads, Some(1.0), None);
-        let mut h = Hierarchy::new(&geo, &quads, 1, sizing, 1e-3, &Rules::default());
-        let octahedron = *h
-            .clusters
-            .starts
-            .iter()
-            .find(|&&r| is_cluster(r) && h.clusters.members(r).len() == 8)
-            .expect("the octahedron's cluster");
+        with_cluster_of(&doc, 8, light_each_face)
+    }
+
+    /// The worst relative error of the light that the unit B of `h`'s first surface, a
+    /// square, sends each member of the cluster `octahedron` through one cluster link, against
+    /// the member's form factor to the square; and how many members it lights.
+    fn light_each_face(h: &mut Hierarchy, octahedron: u32) -> (f64, usize) {
         let floor = &mut h.elements[0];
         assert_eq!(floor.piece.surface, 0);
         floor.b.iter_mut().for_each(|b| *b = [0.0; 3]);
