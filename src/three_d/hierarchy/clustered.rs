@@ -986,6 +986,7 @@ impl Hierarchy<'_> {
         if !is_cluster(id) {
             let el = &self.elements[id as usize];
             let c = dot(self.geo.quads[el.piece.surface].n, omega).max(0.0);
+            // B̄ A = b₀ √A in the orthonormal basis
             let w = c * el.area.sqrt() / PI;
             return Some(el.sent0().map(|b| w * b));
         }
@@ -1004,31 +1005,17 @@ impl Hierarchy<'_> {
     /// the cost of the subtrees along the source's terminator: over every member, the
     /// sweeps of 81 icospheres (10⁵ triangles) visited 70 M members each.
     fn intensity(&self, id: u32, omega: V3, emitters: &[Emitter]) -> Rgb {
-        use std::f64::consts::PI;
-        if !is_cluster(id) {
-            let el = &self.elements[id as usize];
-            let c = dot(self.geo.quads[el.piece.surface].n, omega);
-            if c <= 0.0 {
-                return [0.0; 3];
-            }
-            // B̄ A = b₀ √A in the orthonormal basis
-            let w = c * el.area.sqrt() / PI;
-            return el.sent0().map(|b| w * b);
+        if let Some(linear) = self.linear_intensity(id, omega, emitters) {
+            return linear;
         }
+        // a cluster whose normal cone straddles the plane normal to ω: its two subtrees
         let index = (id & !crate::three_d::cluster::CLUSTER) as usize;
-        let node = &self.clusters.nodes[index];
-        match node.bound.side(omega) {
-            Some(true) => emitters[index].normal.map(|j| dot(j, omega) / PI),
-            Some(false) => [0.0; 3],
-            None => {
-                let [a, b] = node.children;
-                let (x, y) = (
-                    self.intensity(a, omega, emitters),
-                    self.intensity(b, omega, emitters),
-                );
-                [0, 1, 2].map(|ch| x[ch] + y[ch])
-            }
-        }
+        let [a, b] = self.clusters.nodes[index].children;
+        let (x, y) = (
+            self.intensity(a, omega, emitters),
+            self.intensity(b, omega, emitters),
+        );
+        [0, 1, 2].map(|ch| x[ch] + y[ch])
     }
 
     /// The kernel that cluster link `l` applies between its receiving member `i` and its
