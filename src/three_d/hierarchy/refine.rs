@@ -682,6 +682,7 @@ impl Hierarchy<'_> {
                     smooth: g.smooth,
                     sampled: g.sampled,
                     members: g.members,
+                    factors: None,
                 }),
                 ClusterVerdict::Hidden(smooth) => self.hidden_clusters.push((r, s, smooth)),
                 ClusterVerdict::Inert => {}
