@@ -7,7 +7,9 @@
 //! the reference and every cell of the 4 × 4 grid within 5 %, each beyond four of the
 //! reference's standard errors; at order 0, every surface's mean within 3 %; order 2 no worse
 //! than order 1. The small cube in a large room does not meet it at the defaults (its sides
-//! come out 2–2.6 % bright): it is held to converging as ε shrinks.
+//! come out about 1.9 % bright: the floor at their foot is held to its tolerance, ε times the
+//! light's E, which is 5 % of the floor's B there; `benches/README.md`): it is held to
+//! converging as ε shrinks.
 
 mod support;
 mod tracer;
