@@ -437,10 +437,15 @@ impl Hierarchy<'_> {
             return clusters[(id & !crate::three_d::cluster::CLUSTER) as usize];
         }
         let el = &self.elements[id as usize];
-        let mean = el.sent0().map(|x| x / el.area.sqrt());
+        self.element_emitter(id, el.sent0().map(|x| x / el.area.sqrt()))
+    }
+
+    /// The [`Emitter`] of element `e` with the mean B `mean`, about its centroid.
+    fn element_emitter(&self, e: u32, mean: Rgb) -> Emitter {
+        let el = &self.elements[e as usize];
         let q = &self.geo.quads[el.piece.surface];
         let cov = covariance(&el.piece.corners(&self.geo.quads), q.tri);
-        Emitter::member(el.area, mean, self.element_centre(id), q.n, cov)
+        Emitter::member(el.area, mean, self.element_centre(e), q.n, cov)
     }
 
     /// The oracle's state of every cluster from its members, children before parents.
@@ -1009,11 +1014,8 @@ impl Hierarchy<'_> {
     /// times B in each channel: a multiplication per member in every sweep, where the
     /// expansion took the 81 icospheres' sweeps 3.5 s each over 54 M members.
     fn unit_irradiance(&self, l: &ClusterLink) -> Box<[f32]> {
-        let el = &self.elements[l.src as usize];
-        let q = &self.geo.quads[el.piece.surface];
-        let cov = covariance(&el.piece.corners(&self.geo.quads), q.tri);
+        let unit = self.element_emitter(l.src, [1.0; 3]);
         let centre = self.element_centre(l.src);
-        let unit = Emitter::member(el.area, [1.0; 3], centre, q.n, cov);
         let (sc, sr) = self.end(l.src).bound.sphere();
         let mut out = Vec::with_capacity(self.member_count(l.recv));
         let mut k = 0;
@@ -1138,12 +1140,9 @@ impl Hierarchy<'_> {
             if leaves_behind(nx, x, (sc, sr)) {
                 return 0.0;
             }
-            let el = &self.elements[j as usize];
-            let q = &self.geo.quads[el.piece.surface];
-            let cov = covariance(&el.piece.corners(&self.geo.quads), q.tri);
-            let alone = Emitter::member(el.area, [1.0; 3], self.element_centre(j), q.n, cov);
+            let alone = self.element_emitter(j, [1.0; 3]);
             let about = alone.about().expect("a member of unit B sends light");
-            return v * alone.irradiance(about, x, nx)[0] / el.area;
+            return v * alone.irradiance(about, x, nx)[0] / self.elements[j as usize].area;
         }
         let centre = self.centre_of(l.src);
         let (_, ny) = member(l.src, j);
@@ -1505,55 +1504,8 @@ mod tests {
 
     /// A cluster link's kernel ([`Hierarchy::cluster_link_kernel`], what eq. (5) samples),
     /// applied to its source's members' B, is the transfer the link makes: exactly (to
-    /// rounding) for a source seen as its intensity, and for an affine source of one member.
-    /// Under a cap, the kernels held stay within it, and the links deliver
-    /// the same light, held or expanded (to the single precision of what is held).
-    #[test]
-    fn the_kernels_held_stay_within_their_cap() {
-        let quads = super::super::tests::corner_under_a_meshed_ceiling();
-        let geo = crate::three_d::projection::Geometry::new(&quads);
-        let mut h = solved(&geo, &quads);
-        let delivered = |h: &Hierarchy| {
-            let emitters = h.emitters();
-            h.cluster_links
-                .iter()
-                .map(|l| {
-                    let mut out = vec![[0.0; 3]; h.member_count(l.recv)];
-                    h.cluster_link_irradiance(l, &emitters, &mut out);
-                    out
-                })
-                .collect::<Vec<_>>()
-        };
-        let all_held = delivered(&h);
-        let all: usize = h
-            .cluster_links
-            .iter()
-            .filter_map(|l| l.factors.as_ref())
-            .map(|f| f.len())
-            .sum();
-        assert!(all > 0);
-        h.cluster_links.iter_mut().for_each(|l| l.factors = None);
-        h.hold_unit_irradiance(all / 2);
-        let held: Vec<usize> = h
-            .cluster_links
-            .iter()
-            .map(|l| l.factors.as_ref().map_or(0, |f| f.len()))
-            .collect();
-        let total: usize = held.iter().sum();
-        assert!(total > 0 && total <= all / 2, "{total} of {all}");
-        for (got, want) in delivered(&h)
-            .iter()
-            .flatten()
-            .zip(all_held.iter().flatten())
-        {
-            for ch in 0..3 {
-                let limit = f64::from(f32::EPSILON) * want[ch].abs();
-                assert!((got[ch] - want[ch]).abs() <= limit, "{got:?} {want:?}");
-            }
-        }
-    }
-
-    /// The corner of a room under a meshed ceiling of the solver's tests, after one solve, has
+    /// rounding) for a source seen as its intensity, and for an affine source of one member
+    /// (to single precision where the link holds that kernel). The corner of a room under a meshed ceiling of the solver's tests, after one solve, has
     /// links of both kinds.
     #[test]
     fn a_cluster_links_kernel_applied_to_its_members_b_is_its_transfer() {
@@ -1611,6 +1563,50 @@ mod tests {
         }
         eprintln!("{checked:?} links checked (intensity, affine, of them held as kernels)");
         assert!(checked.iter().all(|&n| n > 0), "{checked:?}");
+    }
+
+    /// Under a cap, the kernels held stay within it, and the links deliver
+    /// the same light, held or expanded (to the single precision of what is held).
+    #[test]
+    fn the_kernels_held_stay_within_their_cap() {
+        let quads = super::super::tests::corner_under_a_meshed_ceiling();
+        let geo = crate::three_d::projection::Geometry::new(&quads);
+        let mut h = solved(&geo, &quads);
+        let delivered = |h: &Hierarchy| {
+            let emitters = h.emitters();
+            h.cluster_links
+                .iter()
+                .map(|l| {
+                    let mut out = vec![[0.0; 3]; h.member_count(l.recv)];
+                    h.cluster_link_irradiance(l, &emitters, &mut out);
+                    out
+                })
+                .collect::<Vec<_>>()
+        };
+        let held = |h: &Hierarchy| -> usize {
+            h.cluster_links
+                .iter()
+                .filter_map(|l| l.factors.as_ref())
+                .map(|f| f.len())
+                .sum()
+        };
+        let all_held = delivered(&h);
+        let all = held(&h);
+        assert!(all > 0);
+        h.cluster_links.iter_mut().for_each(|l| l.factors = None);
+        h.hold_unit_irradiance(all / 2);
+        let total = held(&h);
+        assert!(total > 0 && total <= all / 2, "{total} of {all}");
+        for (got, want) in delivered(&h)
+            .iter()
+            .flatten()
+            .zip(all_held.iter().flatten())
+        {
+            for ch in 0..3 {
+                let limit = f64::from(f32::EPSILON) * want[ch].abs();
+                assert!((got[ch] - want[ch]).abs() <= limit, "{got:?} {want:?}");
+            }
+        }
     }
 
     /// A cluster's intensity from its subtrees ([`Hierarchy::intensity`]) is the sum over its
