@@ -154,7 +154,7 @@ impl<'j> Stage<'j> {
         // the leaves' outlines and flat patches have edges inside a surface that the
         // centres do not show: there every pixel is supersampled
         let every_pixel = opts.raw || opts.mesh;
-        self.shoot_sampled(fields, width, height, opts, camera, every_pixel)
+        self.shoot_sampled(fields, [width, height], opts, camera, every_pixel)
             .0
     }
 
@@ -163,8 +163,7 @@ impl<'j> Stage<'j> {
     fn shoot_sampled(
         &self,
         fields: &[Field],
-        width: u32,
-        height: u32,
+        [width, height]: [u32; 2],
         opts: Options,
         camera: Option<Camera>,
         every_pixel: bool,
@@ -721,7 +720,7 @@ mod tests {
         let (w, h) = (220, 180);
         let shot = |every| {
             let o = Options::default();
-            stage.shoot_sampled(&out.fields, w, h, o, Some(camera), every)
+            stage.shoot_sampled(&out.fields, [w, h], o, Some(camera), every)
         };
         let (adaptive, every) = (shot(false), shot(true));
         assert_eq!(every.1, (w * h) as usize);
