@@ -63,6 +63,9 @@ const RUN_MEMBERS: usize = 1 << 20;
 /// at once, one f32 each: 512 MiB (the 81 icospheres' 10⁵ triangles hold 54 M).
 const KERNELS_HELD: usize = 1 << 27;
 
+/// The clusters under one below which [`Hierarchy::emitters`] works sequentially.
+const PARALLEL_EMITTERS: usize = 1 << 12;
+
 /// Rays between two clusters for their visible fraction.
 const CLUSTER_RAYS: usize = 16;
 
@@ -418,17 +421,42 @@ impl Hierarchy<'_> {
         }
     }
 
-    /// The [`Emitter`] of every cluster from the members' B, children before parents.
+    /// The [`Emitter`] of every cluster from the members' B, children before parents: the
+    /// two subtrees of a large cluster in parallel (in every sweep; sequential, it took the
+    /// 81 icospheres 0.14 s a sweep, on 2 cores 0.075 s).
     fn emitters(&self) -> Vec<Emitter> {
-        let tree = &self.clusters;
-        let mut out = vec![Emitter::default(); tree.nodes.len()];
-        for i in (0..tree.nodes.len()).rev() {
-            let [a, b] = tree.nodes[i].children;
-            let x = self.emitter(a, &out);
-            let y = self.emitter(b, &out);
-            out[i] = x.add(&y);
+        let mut out = vec![Emitter::default(); self.clusters.nodes.len()];
+        if !out.is_empty() {
+            let root = crate::three_d::cluster::CLUSTER;
+            self.subtree_emitters(root, &mut out, PARALLEL_EMITTERS);
         }
         out
+    }
+
+    /// The [`Emitter`]s of cluster `id` and of the clusters under it into `out`, which holds
+    /// exactly those, `id`'s first. The clusters are in preorder ([`Clusters`]): a cluster
+    /// of k members is followed by its first child's subtree, then its second's, k − 1
+    /// clusters in all (each a binary split of its members). Subtrees of `parallel` clusters
+    /// or more are filled in parallel.
+    fn subtree_emitters(&self, id: u32, out: &mut [Emitter], parallel: usize) {
+        let [a, b] = self.clusters.get(id).children;
+        let (head, rest) = out.split_first_mut().expect("the cluster's own slot");
+        let big = rest.len() >= parallel;
+        let (left, right) = rest.split_at_mut(self.member_count(a) - 1);
+        let fill = |child: u32, part: &mut [Emitter]| -> Emitter {
+            if is_cluster(child) {
+                self.subtree_emitters(child, part, parallel);
+                part[0]
+            } else {
+                self.emitter(child, &[])
+            }
+        };
+        let (x, y) = if big {
+            rayon::join(|| fill(a, left), || fill(b, right))
+        } else {
+            (fill(a, left), fill(b, right))
+        };
+        *head = x.add(&y);
     }
 
     /// The [`Emitter`] of a cluster (from `clusters`) or of an element (from its B).
@@ -1500,6 +1528,32 @@ mod tests {
         h.link_all(&crate::progress::Silent).unwrap();
         while h.sweep() > 1e-9 {}
         h
+    }
+
+    /// Each cluster's [`Emitter`], its subtrees filled in parallel or not, is the sum of its
+    /// children's, to the bit: the clusters are in the preorder that
+    /// [`Hierarchy::subtree_emitters`] splits them by.
+    #[test]
+    fn each_clusters_emitter_is_its_childrens_sum() {
+        let quads = super::super::tests::corner_under_a_meshed_ceiling();
+        let geo = crate::three_d::projection::Geometry::new(&quads);
+        let h = solved(&geo, &quads);
+        let n = h.clusters.nodes.len();
+        assert!(n > 8, "{n} clusters");
+        let fill = |parallel: usize| {
+            let mut out = vec![Emitter::default(); n];
+            h.subtree_emitters(crate::three_d::cluster::CLUSTER, &mut out, parallel);
+            out
+        };
+        let bits = |e: &Emitter| format!("{e:?}");
+        let (each, none) = (fill(1), fill(usize::MAX));
+        for (i, node) in h.clusters.nodes.iter().enumerate() {
+            let [a, b] = node.children;
+            let sum = h.emitter(a, &none).add(&h.emitter(b, &none));
+            assert_eq!(bits(&none[i]), bits(&sum), "cluster {i}");
+            assert_eq!(bits(&each[i]), bits(&sum), "cluster {i}, in parallel");
+        }
+        assert!(none.iter().any(|e| e.light > 0.0), "some light");
     }
 
     /// A cluster link's kernel ([`Hierarchy::cluster_link_kernel`], what eq. (5) samples),
