@@ -51,6 +51,34 @@ struct Leaf {
     id: [u32; W],
 }
 
+impl Leaf {
+    /// The packet of up to four surfaces `ids` of `quads`.
+    fn pack(quads: &[Parallelogram], ids: &[u32]) -> Leaf {
+        let mut lanes = [[[0.0; W]; 3]; 4];
+        let mut id = [u32::MAX; W];
+        let mut tri = [0.0; W];
+        for (k, &i) in ids.iter().enumerate() {
+            let q = &quads[i as usize];
+            tri[k] = if q.tri { 1.0 } else { 0.0 };
+            for (lane, vector) in lanes.iter_mut().zip([q.p0, q.n, q.u, q.v]) {
+                for a in 0..3 {
+                    lane[a][k] = vector[a];
+                }
+            }
+            id[k] = i;
+        }
+        let [p0, n, u, v] = lanes.map(|l| l.map(Lanes4));
+        Leaf {
+            p0,
+            n,
+            u,
+            v,
+            tri: Lanes4(tri),
+            id,
+        }
+    }
+}
+
 /// Four values side by side, aligned for one vector load.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(32))]
@@ -307,28 +335,8 @@ impl Bvh {
         let Some(kids) = &tree.kids else {
             let first = self.leaves.len() as u32;
             for chunk in tree.surfaces.chunks(W) {
-                let mut lanes = [[[0.0; W]; 3]; 4];
-                let mut id = [u32::MAX; W];
-                let mut tri = [0.0; W];
-                for (k, &i) in chunk.iter().enumerate() {
-                    let q = &self.quads[i as usize];
-                    tri[k] = if q.tri { 1.0 } else { 0.0 };
-                    for (lane, vector) in lanes.iter_mut().zip([q.p0, q.n, q.u, q.v]) {
-                        for a in 0..3 {
-                            lane[a][k] = vector[a];
-                        }
-                    }
-                    id[k] = i;
-                }
-                let [p0, n, u, v] = lanes.map(|l| l.map(Lanes4));
-                self.leaves.push(Leaf {
-                    p0,
-                    n,
-                    u,
-                    v,
-                    tri: Lanes4(tri),
-                    id,
-                });
+                let leaf = Leaf::pack(&self.quads, chunk);
+                self.leaves.push(leaf);
             }
             let packets = self.leaves.len() as u32 - first;
             return LEAF | first << 1 | (packets - 1);
@@ -419,6 +427,38 @@ impl Bvh {
             return unsafe { any_hit_avx2(simd, self, a, d, 1e-9, 1.0 - 1e-9, skip) };
         }
         any_hit(Portable, self, a, d, 1e-9, 1.0 - 1e-9, skip)
+    }
+
+    /// Surfaces `ids` of the scene in packets of four, for [`Bvh::occluded_among`].
+    pub(crate) fn shaft(&self, ids: &[u32]) -> Shaft {
+        Shaft(ids.chunks(W).map(|c| Leaf::pack(&self.quads, c)).collect())
+    }
+
+    /// [`Bvh::occluded`] with only the surfaces of `shaft` tested, each packet by the same
+    /// arithmetic as the tree's leaves: the same answer when they are every surface of the
+    /// tree that may cross the segment.
+    pub(crate) fn occluded_among(&self, shaft: &Shaft, a: V3, b: V3, skip: [usize; 2]) -> bool {
+        let d = sub(b, a);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = self.avx2 {
+            // SAFETY: as for `first_hit`
+            return unsafe { any_crossing_avx2(simd, &shaft.0, a, d, 1e-9, 1.0 - 1e-9, skip) };
+        }
+        any_crossing(Portable, &shaft.0, a, d, 1e-9, 1.0 - 1e-9, skip)
+    }
+}
+
+/// A few surfaces taken out of the tree in packets of four: those that may come between two
+/// pieces (the candidate list of shaft culling, Haines and Wallace 1991, here the surfaces in
+/// the pieces' bounding box). A ray between the pieces then tests each packet instead of
+/// walking the tree from its root.
+#[derive(Debug, Clone)]
+pub(crate) struct Shaft(SmallVec<[Leaf; 8]>);
+
+impl Shaft {
+    /// Whether the shaft holds no surface.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.0.is_empty()
     }
 }
 
@@ -576,6 +616,38 @@ unsafe fn any_hit_avx2(
     skip: [usize; 2],
 ) -> bool {
     any_hit(simd, bvh, o, d, t_min, t_max, skip)
+}
+
+/// [`any_crossing`] compiled for AVX2 and FMA, as [`nearest_avx2`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2,fma")]
+unsafe fn any_crossing_avx2(
+    simd: pulp::x86::V3,
+    packets: &[Leaf],
+    o: V3,
+    d: V3,
+    t_min: f64,
+    t_max: f64,
+    skip: [usize; 2],
+) -> bool {
+    any_crossing(simd, packets, o, d, t_min, t_max, skip)
+}
+
+/// The test of [`Bvh::occluded_among`]: the packets one after another, up to the first that
+/// the ray crosses.
+#[inline(always)]
+fn any_crossing<L: Lanes>(
+    simd: L,
+    packets: &[Leaf],
+    o: V3,
+    d: V3,
+    t_min: f64,
+    t_max: f64,
+    skip: [usize; 2],
+) -> bool {
+    let ray = Ray::new(simd, o, d, t_min, skip);
+    let t_max = simd.splat(t_max);
+    packets.iter().any(|leaf| ray.crossings(leaf, t_max).1 != 0)
 }
 
 /// The walk for [`Bvh::occluded`]; children are visited in any order.

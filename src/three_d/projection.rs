@@ -30,7 +30,7 @@ pub struct Geometry {
     pub(super) quads: Vec<Parallelogram>,
     /// The surfaces that may occlude a ray between two others ([`Bvh::occluders`]).
     pub(super) bvh: Bvh,
-    /// The thorough hull tests of [`visibility::any_occluder`] asked so far.
+    /// The thorough hull tests of [`visibility::occluders`] asked so far.
     hulls: visibility::HullMemo,
 }
 
@@ -84,12 +84,12 @@ impl Geometry {
         self.visibility_over(a, None, b, seed, grid, rays)
     }
 
-    /// Whether no surface can come between pieces `a` and `b` (the hull test alone): no
-    /// surface of the occluders' tree in the box of the two pieces meets the hull of the
-    /// pieces by the quick test and that of their whole surfaces by the thorough one
-    /// ([`visibility::may_occlude`]).
-    pub(super) fn unoccluded(&self, a: Piece, b: Piece) -> bool {
-        !visibility::any_occluder(&self.quads, &self.bvh, &self.hulls, a, b)
+    /// What may come between pieces `a` and `b`, for their rays: the surfaces of the
+    /// occluders' tree in the box of the two pieces that meet the hull of the pieces by the
+    /// quick test and that of their whole surfaces by the thorough one
+    /// ([`visibility::occluders`]); none when nothing can come between them.
+    pub(super) fn occluders(&self, a: Piece, b: Piece) -> visibility::Occluders<'_> {
+        visibility::occluders(&self.bvh, &self.hulls, a, b)
     }
 
     /// [`Geometry::visibility`] over the exposed part of `a` only, where `covered` marks a
@@ -103,10 +103,11 @@ impl Geometry {
         grid: usize,
         rays: &mut u64,
     ) -> Seen {
-        if self.unoccluded(a, b) {
+        let occluders = self.occluders(a, b);
+        if occluders.clear() {
             return Seen::CLEAR;
         }
-        visibility::visible_fraction_over(&self.bvh, a, covered, b, grid, seed, rays)
+        visibility::visible_fraction_over(&occluders, a, covered, b, grid, seed, rays)
     }
 }
 

@@ -432,7 +432,7 @@ impl<'g> Hierarchy<'g> {
             .map(|l| {
                 let (mut x, mut rays) = (l.factors, 0);
                 let n = x.unlit.take().map_or(0, usize::from);
-                let v = self.share_of_light(l.recv, l.src, n, &mut rays);
+                let v = self.share_of_light(l.recv, l.src, n, None, &mut rays);
                 (l.recv, l.src, x, v, rays)
             })
             .collect();
@@ -1209,12 +1209,13 @@ mod tests {
             assert!(x.unlit.is_none());
             let &(_, _, n) = unlit.iter().find(|u| (u.0, u.1) == (r, s)).unwrap();
             let n = usize::from(n);
-            assert_eq!(v, h.share_of_light(r, s, n, &mut 0), "{r} ← {s}");
+            assert_eq!(v, h.share_of_light(r, s, n, None, &mut 0), "{r} ← {s}");
             let (pr, ps) = (h.elements[r as usize].piece, h.elements[s as usize].piece);
             let seed = crate::three_d::visibility::pair_seed(h.identity(r), h.identity(s)) ^ 2;
             let mask = h.masks[pr.surface].as_ref();
+            let all = crate::three_d::visibility::Occluders::all(&geo.bvh);
             let rays = crate::three_d::visibility::visible_fraction_over(
-                &geo.bvh, pr, mask, ps, n, seed, &mut 0,
+                &all, pr, mask, ps, n, seed, &mut 0,
             );
             differ += usize::from((rays.whole - v.whole).abs() > 1e-3);
         }

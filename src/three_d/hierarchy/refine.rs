@@ -62,7 +62,7 @@ use crate::three_d::rules::Rules;
 use crate::three_d::steps::{Steps, STEP};
 use crate::three_d::transfer::{self, Integrand};
 use crate::three_d::visibility::{
-    pair_seed, unseen_bound, visible_fraction_over, visible_share_of_light, Seen,
+    pair_seed, unseen_bound, visible_fraction_over, visible_share_of_light, Occluders, Seen,
 };
 use rayon::prelude::*;
 
@@ -313,14 +313,33 @@ impl Hierarchy<'_> {
 
     /// The visible fraction of the pair (`r`, `s`) from a fresh `n` × `n` grid of rays,
     /// independent of the rays that judged it, each weighted by the source's B where it ends
-    /// ([`visible_share_of_light`], [`Hierarchy::light_at`]).
-    pub(super) fn share_of_light(&self, r: u32, s: u32, n: usize, rays: &mut u64) -> Seen {
-        let pr = self.elements[r as usize].piece;
+    /// ([`visible_share_of_light`], [`Hierarchy::light_at`]); `occluders` are the pair's
+    /// ([`Geometry::occluders`], `None` to find them).
+    pub(super) fn share_of_light(
+        &self,
+        r: u32,
+        s: u32,
+        n: usize,
+        occluders: Option<&Occluders>,
+        rays: &mut u64,
+    ) -> Seen {
+        let (pr, ps) = (
+            self.elements[r as usize].piece,
+            self.elements[s as usize].piece,
+        );
+        let found;
+        let occluders = match occluders {
+            Some(o) => o,
+            None => {
+                found = self.geo.occluders(pr, ps);
+                &found
+            }
+        };
         visible_share_of_light(
-            &self.geo.bvh,
+            occluders,
             pr,
             self.masks[pr.surface].as_ref(),
-            self.elements[s as usize].piece,
+            ps,
             n,
             pair_seed(self.identity(r), self.identity(s)) ^ 2,
             rays,
@@ -459,7 +478,8 @@ impl Hierarchy<'_> {
         // the source than rays from inside the receiver can tell. The receiver is split
         // unless it is the smaller of the two ([`Hierarchy::refine_all`]); no rays are needed
         // to decide that
-        let clear = self.geo.unoccluded(pr, ps);
+        let occluders = self.geo.occluders(pr, ps);
+        let clear = occluders.clear();
         let contact = !clear && self.at_contact(r);
         if contact && self.splittable(r) {
             let (kernel, detail) = self.error(
@@ -489,11 +509,10 @@ impl Hierarchy<'_> {
         let top = el_r.level.min(el_s.level).max(2u32.saturating_sub(below));
         let grid = VISIBILITY_GRID << 2u32.saturating_sub(top);
         let mask = self.masks[pr.surface].as_ref();
-        let bvh = &self.geo.bvh;
         let mut v = if clear {
             Seen::CLEAR
         } else {
-            visible_fraction_over(bvh, pr, mask, ps, grid, seed, &mut rays)
+            visible_fraction_over(&occluders, pr, mask, ps, grid, seed, &mut rays)
         };
         // a partly visible pair's fresh rays are cast on the finer grid that puts four in
         // each step cell of the receiver, so that its visible fraction is a step over those
@@ -541,14 +560,14 @@ impl Hierarchy<'_> {
         if !clear {
             let fresh = used;
             if self.b_known() {
-                v = self.share_of_light(r, s, fresh, &mut rays);
+                v = self.share_of_light(r, s, fresh, Some(&occluders), &mut rays);
             } else if partial {
                 // partly visible before B is known: the fraction is taken again with the
                 // light after the first solve, and the judging rays' stand in until then
                 // (fresh rays now, weighted alike, were a third of the Cornell box's rays)
                 x.unlit = Some(fresh as u8);
             } else {
-                v = visible_fraction_over(bvh, pr, mask, ps, fresh, seed ^ 2, &mut rays);
+                v = visible_fraction_over(&occluders, pr, mask, ps, fresh, seed ^ 2, &mut rays);
                 x.unlit = (v.whole < 1.0).then_some(fresh as u8);
             }
         }
