@@ -153,7 +153,7 @@ impl<'b> Occluders<'b> {
 /// test of [`may_occlude`] on the pieces' hull and the thorough one on their whole surfaces'
 /// hull: the pair is clear. Else every surface in the box, the box test alone (the hull
 /// tests cost more than the rays they would spare: testing each surface of the box made the
-/// room with 7 × 7 boxes 24 % slower), or the whole tree when the box holds more than
+/// room with 7 × 7 boxes 23 % slower), or the whole tree when the box holds more than
 /// [`SHAFT_SURFACES`].
 pub(super) fn occluders<'b>(bvh: &'b Bvh, memo: &HullMemo, a: Piece, b: Piece) -> Occluders<'b> {
     let quads = bvh.quads();
