@@ -104,14 +104,16 @@ def icosphere(name, centre, radius, level, rho=WHITE):
     return {"name": name, "mesh": {"positions": positions, "triangles": f}, "reflectance": rho}
 
 
-def doc(name, surfaces, eye, look, grid=4):
+def doc(name, surfaces, eye=None, look=None, grid=4):
+    """A job document; without an eye, the picture's camera is framed automatically (in a
+    closed room, from an upper corner inside it)."""
+    output = {"grid": grid}
+    if eye is not None:
+        output["camera"] = {"eye": eye, "look_at": look, "up": [0, 1, 0], "fov_deg": 60}
     return {
         "scene": {"kind": "3d", "name": name, "surfaces": surfaces},
         "solver": {"method": "hierarchical"},
-        "output": {
-            "grid": grid,
-            "camera": {"eye": eye, "look_at": look, "up": [0, 1, 0], "fov_deg": 60},
-        },
+        "output": output,
     }
 
 
@@ -125,7 +127,7 @@ def grid_room(n):
         for j in range(n):
             height = size * (1.0 + 0.5 * ((i + 2 * j) % 3))
             surfaces += box(f"box{i}{j}", step * (i + 1), step * (j + 1), size, height, size)
-    return doc(f"A room with {n} x {n} boxes", surfaces, [5, 6, -8], [5, 3, 5])
+    return doc(f"A room with {n} x {n} boxes", surfaces)
 
 
 def rotated_boxes():
@@ -134,7 +136,7 @@ def rotated_boxes():
     surfaces += box("a", 3, 3, 2, 2, 2, 30)
     surfaces += box("b", 7, 4, 1.5, 3, 1.5, 45)
     surfaces += box("c", 4.5, 7.5, 3, 1, 1.5, -20)
-    return doc("Rotated boxes", surfaces, [5, 4, -6], [5, 1.5, 5])
+    return doc("Rotated boxes", surfaces)
 
 
 def small_object():
@@ -150,14 +152,14 @@ def box_against_wall():
     # the box's north side lies in the back wall's plane: left out, the wall is there
     b = box("box", 4, 7, 3, 2, 2, 0, [0.3, 0.5, 0.8])
     surfaces += [s for s in b if not s["name"].endswith("-north")]
-    return doc("A box against a wall", surfaces, [4, 3, -5], [4, 1, 6])
+    return doc("A box against a wall", surfaces)
 
 
 def corner_light():
     surfaces = room(8, 4, 6, left=RED, right=GREEN)
     surfaces.append(ceiling_light(0.3, 0.3, 1.8, 1.8, 3.9, 20.0))
     surfaces += box("box", 5, 3.5, 2, 1.5, 2, 15)
-    return doc("A light in a corner", surfaces, [4, 2.5, -5], [4, 1, 3])
+    return doc("A light in a corner", surfaces)
 
 
 def meshes_on_a_floor():
@@ -168,7 +170,7 @@ def meshes_on_a_floor():
     surfaces.append(icosphere("small-ball", [6.5, 0.5, 3], 0.5, 1))
     surfaces.append(box_mesh("block", 6.5, 6.5, 2, 2.5, 1.5, 30, [0.3, 0.5, 0.7]))
     surfaces.append(box_mesh("slab", 3, 7.5, 2.5, 0.6, 1.5, -15))
-    return doc("Meshes on a floor", surfaces, [5, 4, -6], [5, 1.5, 5])
+    return doc("Meshes on a floor", surfaces)
 
 
 def main():

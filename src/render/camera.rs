@@ -287,8 +287,10 @@ pub fn surface_image(field: &Field, width: u32, height: u32, exposure: f64) -> R
 /// direction with the most pixels of a coarse probe image on the front of a patch of `part`.
 /// Where that is less than a fifth of the probe (a closed room, two plates facing each other,
 /// a ball in a room whose walls stand between it and every such camera), the same directions
-/// at 90° from half as far, and the centre of the sphere looking out at 90° along an axis,
-/// are tried too, and the one that sees most is taken.
+/// at 90° from half as far, the centre of the sphere looking out at 90° along a horizontal
+/// axis, and eyes inside the box of `part` near each of its side faces, upper edges and
+/// upper corners looking at its centre at 90° are tried too: of those that see at least [`NEARLY`] as much front as the
+/// best, the one that sees the fronts of most patches is taken.
 fn frame(geo: &[Parallelogram], bvh: &Bvh, part: std::ops::Range<usize>) -> Camera {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
@@ -324,63 +326,104 @@ fn frame(geo: &[Parallelogram], bvh: &Bvh, part: std::ops::Range<usize>) -> Came
         let sign = |b: usize| if i & b == 0 { 1.0 } else { -1.0 };
         normalize([sign(1), sign(2), sign(4)])
     });
-    let best = |cams: Vec<Camera>| {
+    let probe = |cams: Vec<Camera>| {
         cams.into_iter()
             .map(|c| (front_facing(bvh, geo, &c, part.clone()), c))
-            .fold(None, |best: Option<(f64, Camera)>, (f, c)| match best {
-                Some((g, _)) if g >= f => best,
-                _ => Some((f, c)),
-            })
-            .expect("candidates")
+            .collect::<Vec<_>>()
     };
     let fov: f64 = 40.0;
     let dist = radius / (0.5 * fov.to_radians()).sin();
     let directions: Vec<V3> = axes.iter().copied().chain(diagonals).collect();
-    let (seen, outside) = best(directions.iter().map(|&d| camera(d, dist, fov)).collect());
-    if seen >= 0.2 {
-        return outside;
+    let mut seen = probe(directions.iter().map(|&d| camera(d, dist, fov)).collect());
+    let outside = seen.iter().fold(
+        &seen[0],
+        |best, c| if c.0 .0 > best.0 .0 { c } else { best },
+    );
+    if outside.0 .0 >= 0.2 {
+        return outside.1;
     }
+    let outside = *outside;
     let near = radius / (0.5 * 90f64.to_radians()).sin();
-    let (near_seen, nearer) = best(directions.iter().map(|&d| camera(d, near, 90.0)).collect());
-    let (inside_seen, inside) = best(
+    seen = vec![outside];
+    seen.extend(probe(
+        directions.iter().map(|&d| camera(d, near, 90.0)).collect(),
+    ));
+    seen.extend(probe(
         axes.iter()
+            .filter(|d| d[1].abs() < 0.9)
             .map(|&d| Camera {
                 eye: center,
                 look_at: add(center, d),
                 ..camera(d, 0.0, 90.0)
             })
             .collect(),
-    );
-    let mut chosen = (seen, outside);
-    for (f, c) in [(near_seen, nearer), (inside_seen, inside)] {
-        if f > chosen.0 {
-            chosen = (f, c);
+    ));
+    // inside the box, near each of its side faces, its upper edges and corners, looking at
+    // its centre: a closed room seen from within, most of it in view, from eye height or
+    // above (y is up). These and the centre's cameras do not look straight up or down: from
+    // the room's centre, a room of boxes seen from above showed their tops and no more
+    let half = scale(sub(hi, lo), 0.5);
+    seen.extend(probe(
+        directions
+            .iter()
+            .filter(|d| d[1] <= 0.0 && d[1] > -0.9)
+            .map(|&d| {
+                let m = d.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+                Camera {
+                    eye: sub(center, [0, 1, 2].map(|a| WITHIN * d[a] / m * half[a])),
+                    ..camera(d, 0.0, 90.0)
+                }
+            })
+            .collect(),
+    ));
+    // of the cameras that see nearly as much of the fronts as the best, the one that sees
+    // most surfaces: inside a room every camera sees fronts alone, and the one from the
+    // ceiling's centre saw its light and little else
+    let most = seen.iter().map(|c| c.0 .0).fold(0.0, f64::max);
+    let mut chosen = &seen[0];
+    for c in seen.iter().filter(|c| c.0 .0 >= NEARLY * most) {
+        if chosen.0 .0 < NEARLY * most || c.0 .1 > chosen.0 .1 {
+            chosen = c;
         }
     }
     chosen.1
 }
 
+/// How far toward the faces, edges and corners of a part's box the cameras inside it stand
+/// ([`frame`]), as a share of the way from its centre: near enough to a room's walls to see
+/// most of it, far enough not to stand in them.
+const WITHIN: f64 = 0.85;
+
+/// The share of the most front a camera must see to be chosen for the surfaces it sees
+/// ([`frame`]).
+const NEARLY: f64 = 0.9;
+
 /// The fraction of a 32 × 32 probe image of `camera` that falls on the front of a patch of
-/// `part`.
+/// `part`, and how many patches of `part` it sees the front of.
 fn front_facing(
     bvh: &Bvh,
     geo: &[Parallelogram],
     camera: &Camera,
     part: std::ops::Range<usize>,
-) -> f64 {
+) -> (f64, usize) {
     const N: u32 = 32;
     let view = View::new(camera, N, N);
-    let mut front = 0;
+    let mut front = Vec::new();
     for y in 0..N {
         for x in 0..N {
             let d = view.ray(x as f64 + 0.5, y as f64 + 0.5);
             let hit = bvh.first_hit(view.eye, d, 0.0, f64::INFINITY, [usize::MAX; 2]);
-            if hit.is_some_and(|h| part.contains(&h.surface) && dot(d, geo[h.surface].n) < 0.0) {
-                front += 1;
+            if let Some(h) = hit {
+                if part.contains(&h.surface) && dot(d, geo[h.surface].n) < 0.0 {
+                    front.push(h.surface);
+                }
             }
         }
     }
-    front as f64 / (N * N) as f64
+    let share = front.len() as f64 / (N * N) as f64;
+    front.sort_unstable();
+    front.dedup();
+    (share, front.len())
 }
 
 struct View {
@@ -680,10 +723,10 @@ mod tests {
             };
             let part = d.surfaces[7].patches.clone();
             let camera = frame(&stage.geo, &stage.bvh, part.clone());
-            let seen = front_facing(&stage.bvh, &stage.geo, &camera, part.clone());
+            let seen = front_facing(&stage.bvh, &stage.geo, &camera, part.clone()).0;
             let geo = &stage.geo[part];
             let bvh = Bvh::new(geo);
-            let alone = front_facing(&bvh, geo, &frame(geo, &bvh, 0..geo.len()), 0..geo.len());
+            let alone = front_facing(&bvh, geo, &frame(geo, &bvh, 0..geo.len()), 0..geo.len()).0;
             assert!(
                 seen >= 0.5 * alone,
                 "{seen} of the picture of an octahedron about {c:?} shows it, {alone} alone"
@@ -693,6 +736,43 @@ mod tests {
                 "the eye {:?} is in the room",
                 camera.eye
             );
+        }
+    }
+
+    /// A closed room with no camera in its document is pictured from within, from where
+    /// most of it is in view: every outside camera sees the walls' backs, and the camera at
+    /// the room's centre looking along an axis sees one wall and the edges of four. The
+    /// camera chosen sees the fronts of more patches than any of those, and of at least half
+    /// of the room's 15 (six walls, the light, the octahedron's eight faces).
+    #[test]
+    fn a_closed_rooms_picture_sees_most_of_it_from_within() {
+        let job = room_with_octahedron([3.0, 3.0, 6.0]);
+        let stage = Stage::of(&job).expect("a 3D scene");
+        let all = 0..stage.geo.len();
+        assert_eq!(all.len(), 15);
+        let camera = frame(&stage.geo, &stage.bvh, all.clone());
+        assert!(camera.eye.iter().all(|&x| (0.0..10.0).contains(&x)));
+        let (share, patches) = front_facing(&stage.bvh, &stage.geo, &camera, all.clone());
+        assert!(share > 0.95, "{share} of the picture on fronts");
+        assert!(patches >= 8, "{patches} patches seen");
+        for d in [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] {
+            for sign in [1.0, -1.0] {
+                let centre = Camera {
+                    eye: [5.0; 3],
+                    look_at: add([5.0; 3], scale(d, sign)),
+                    up: if d[1] != 0.0 {
+                        [0.0, 0.0, 1.0]
+                    } else {
+                        [0.0, 1.0, 0.0]
+                    },
+                    fov_deg: 90.0,
+                };
+                let from_centre = front_facing(&stage.bvh, &stage.geo, &centre, all.clone()).1;
+                assert!(
+                    from_centre < patches,
+                    "{from_centre} from the centre, {patches}"
+                );
+            }
         }
     }
 
