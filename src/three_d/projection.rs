@@ -84,10 +84,10 @@ impl Geometry {
         self.visibility_over(a, None, b, seed, grid, rays)
     }
 
-    /// What may come between pieces `a` and `b`, for their rays: the surfaces of the
-    /// occluders' tree in the box of the two pieces that meet the hull of the pieces by the
-    /// quick test and that of their whole surfaces by the thorough one
-    /// ([`visibility::occluders`]); none when nothing can come between them.
+    /// What may come between pieces `a` and `b`, for their rays ([`visibility::occluders`]):
+    /// nothing when no surface of the occluders' tree in the box of the two pieces meets the
+    /// hull of the pieces by the quick test and that of their whole surfaces by the thorough
+    /// one, else the surfaces in that box when they are few, or the whole tree.
     pub(super) fn occluders(&self, a: Piece, b: Piece) -> visibility::Occluders<'_> {
         visibility::occluders(&self.bvh, &self.hulls, a, b)
     }
