@@ -412,21 +412,21 @@ impl Bvh {
         if let Some(simd) = self.avx2 {
             // SAFETY: `avx2` is set only when the processor has the features the walk is
             // compiled for
-            return unsafe { nearest_avx2(simd, self, o, d, t_min, t_max, skip) };
+            return unsafe { nearest_avx2(simd, self, Query::new(o, d, t_min, t_max, skip)) };
         }
-        nearest(Portable, self, o, d, t_min, t_max, skip)
+        nearest(Portable, self, Query::new(o, d, t_min, t_max, skip))
     }
 
     /// Whether some surface other than `skip` crosses the open segment (a, b): any hit ends
     /// the walk.
     pub fn occluded(&self, a: V3, b: V3, skip: [usize; 2]) -> bool {
-        let d = sub(b, a);
+        let q = Query::segment(a, b, skip);
         #[cfg(target_arch = "x86_64")]
         if let Some(simd) = self.avx2 {
             // SAFETY: as for `first_hit`
-            return unsafe { any_hit_avx2(simd, self, a, d, 1e-9, 1.0 - 1e-9, skip) };
+            return unsafe { any_hit_avx2(simd, self, q) };
         }
-        any_hit(Portable, self, a, d, 1e-9, 1.0 - 1e-9, skip)
+        any_hit(Portable, self, q)
     }
 
     /// Surfaces `ids` of the scene in packets of four, for [`Bvh::occluded_among`].
@@ -438,13 +438,13 @@ impl Bvh {
     /// arithmetic as the tree's leaves: the same answer when they are every surface of the
     /// tree that may cross the segment.
     pub(crate) fn occluded_among(&self, shaft: &Shaft, a: V3, b: V3, skip: [usize; 2]) -> bool {
-        let d = sub(b, a);
+        let q = Query::segment(a, b, skip);
         #[cfg(target_arch = "x86_64")]
         if let Some(simd) = self.avx2 {
             // SAFETY: as for `first_hit`
-            return unsafe { any_crossing_avx2(simd, &shaft.0, a, d, 1e-9, 1.0 - 1e-9, skip) };
+            return unsafe { any_crossing_avx2(simd, &shaft.0, q) };
         }
-        any_crossing(Portable, &shaft.0, a, d, 1e-9, 1.0 - 1e-9, skip)
+        any_crossing(Portable, &shaft.0, q)
     }
 }
 
@@ -591,81 +591,41 @@ impl Lanes for pulp::x86::V3 {
 /// them, each operation a call, and ran ten times slower than the portable lanes.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2,fma")]
-unsafe fn nearest_avx2(
-    simd: pulp::x86::V3,
-    bvh: &Bvh,
-    o: V3,
-    d: V3,
-    t_min: f64,
-    t_max: f64,
-    skip: [usize; 2],
-) -> Option<Hit> {
-    nearest(simd, bvh, o, d, t_min, t_max, skip)
+unsafe fn nearest_avx2(simd: pulp::x86::V3, bvh: &Bvh, q: Query) -> Option<Hit> {
+    nearest(simd, bvh, q)
 }
 
 /// [`any_hit`] compiled for AVX2 and FMA, as [`nearest_avx2`].
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2,fma")]
-unsafe fn any_hit_avx2(
-    simd: pulp::x86::V3,
-    bvh: &Bvh,
-    o: V3,
-    d: V3,
-    t_min: f64,
-    t_max: f64,
-    skip: [usize; 2],
-) -> bool {
-    any_hit(simd, bvh, o, d, t_min, t_max, skip)
+unsafe fn any_hit_avx2(simd: pulp::x86::V3, bvh: &Bvh, q: Query) -> bool {
+    any_hit(simd, bvh, q)
 }
 
 /// [`any_crossing`] compiled for AVX2 and FMA, as [`nearest_avx2`].
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2,fma")]
-unsafe fn any_crossing_avx2(
-    simd: pulp::x86::V3,
-    packets: &[Leaf],
-    o: V3,
-    d: V3,
-    t_min: f64,
-    t_max: f64,
-    skip: [usize; 2],
-) -> bool {
-    any_crossing(simd, packets, o, d, t_min, t_max, skip)
+unsafe fn any_crossing_avx2(simd: pulp::x86::V3, packets: &[Leaf], q: Query) -> bool {
+    any_crossing(simd, packets, q)
 }
 
 /// The test of [`Bvh::occluded_among`]: the packets one after another, up to the first that
 /// the ray crosses.
 #[inline(always)]
-fn any_crossing<L: Lanes>(
-    simd: L,
-    packets: &[Leaf],
-    o: V3,
-    d: V3,
-    t_min: f64,
-    t_max: f64,
-    skip: [usize; 2],
-) -> bool {
-    let ray = Ray::new(simd, o, d, t_min, skip);
-    let t_max = simd.splat(t_max);
+fn any_crossing<L: Lanes>(simd: L, packets: &[Leaf], q: Query) -> bool {
+    let ray = Ray::new(simd, q);
+    let t_max = simd.splat(q.t_max);
     packets.iter().any(|leaf| ray.crossings(leaf, t_max).1 != 0)
 }
 
 /// The walk for [`Bvh::occluded`]; children are visited in any order.
 #[inline(always)]
-fn any_hit<L: Lanes>(
-    simd: L,
-    bvh: &Bvh,
-    o: V3,
-    d: V3,
-    t_min: f64,
-    t_max: f64,
-    skip: [usize; 2],
-) -> bool {
+fn any_hit<L: Lanes>(simd: L, bvh: &Bvh, q: Query) -> bool {
     let Some(root) = bvh.root else {
         return false;
     };
-    let ray = Ray::new(simd, o, d, t_min, skip);
-    let t_max = simd.splat(t_max);
+    let ray = Ray::new(simd, q);
+    let t_max = simd.splat(q.t_max);
     let mut stack: SmallVec<[u32; 48]> = SmallVec::new();
     stack.push(root);
     while let Some(r) = stack.pop() {
@@ -690,21 +650,13 @@ fn any_hit<L: Lanes>(
 /// The walk for [`Bvh::first_hit`]: nearer children first, and a child whose box starts
 /// beyond the nearest hit so far is dropped when it comes off the stack.
 #[inline(always)]
-fn nearest<L: Lanes>(
-    simd: L,
-    bvh: &Bvh,
-    o: V3,
-    d: V3,
-    t_min: f64,
-    t_max: f64,
-    skip: [usize; 2],
-) -> Option<Hit> {
+fn nearest<L: Lanes>(simd: L, bvh: &Bvh, q: Query) -> Option<Hit> {
     let root = bvh.root?;
-    let ray = Ray::new(simd, o, d, t_min, skip);
+    let ray = Ray::new(simd, q);
     let mut best: Option<Hit> = None;
-    let mut t_max = t_max;
+    let mut t_max = q.t_max;
     let mut stack: SmallVec<[(u32, f64); 48]> = SmallVec::new();
-    stack.push((root, t_min));
+    stack.push((root, q.t_min));
     while let Some((r, enter)) = stack.pop() {
         if enter > t_max {
             continue;
@@ -751,6 +703,34 @@ fn packets(bvh: &Bvh, r: u32) -> &[Leaf] {
     &bvh.leaves[first..=first + (r & 1) as usize]
 }
 
+/// What a walk is asked about: the ray `o + t d` for t in (t_min, t_max), the surfaces
+/// `skip` left out.
+#[derive(Debug, Clone, Copy)]
+struct Query {
+    o: V3,
+    d: V3,
+    t_min: f64,
+    t_max: f64,
+    skip: [usize; 2],
+}
+
+impl Query {
+    fn new(o: V3, d: V3, t_min: f64, t_max: f64, skip: [usize; 2]) -> Query {
+        Query {
+            o,
+            d,
+            t_min,
+            t_max,
+            skip,
+        }
+    }
+
+    /// The open segment (a, b), its ends left out by a margin of 1e-9 of its length.
+    fn segment(a: V3, b: V3, skip: [usize; 2]) -> Query {
+        Query::new(a, sub(b, a), 1e-9, 1.0 - 1e-9, skip)
+    }
+}
+
 /// A ray `o + t d`, t > t_min, set up for four lanes at a time.
 struct Ray<L: Lanes> {
     simd: L,
@@ -763,15 +743,15 @@ struct Ray<L: Lanes> {
 
 impl<L: Lanes> Ray<L> {
     #[inline(always)]
-    fn new(simd: L, o: V3, d: V3, t_min: f64, skip: [usize; 2]) -> Ray<L> {
+    fn new(simd: L, q: Query) -> Ray<L> {
         Ray {
             simd,
-            o: o.map(|c| simd.splat(c)),
-            d: d.map(|c| simd.splat(c)),
-            inv: d.map(|c| simd.splat(1.0 / c)),
-            t_min: simd.splat(t_min),
+            o: q.o.map(|c| simd.splat(c)),
+            d: q.d.map(|c| simd.splat(c)),
+            inv: q.d.map(|c| simd.splat(1.0 / c)),
+            t_min: simd.splat(q.t_min),
             // u32::MAX marks empty lanes, which never cross anyway
-            skip: skip.map(|s| u32::try_from(s).unwrap_or(u32::MAX)),
+            skip: q.skip.map(|s| u32::try_from(s).unwrap_or(u32::MAX)),
         }
     }
 
@@ -941,9 +921,9 @@ mod tests {
             }
             assert_eq!(bvh.occluded(o, e, skip), want.is_some());
             // the portable lanes give the same answers as the vector unit's
-            let portable = nearest(Portable, &bvh, o, d, 1e-9, 1.0 - 1e-9, skip);
+            let portable = nearest(Portable, &bvh, Query::new(o, d, 1e-9, 1.0 - 1e-9, skip));
             assert_eq!(portable, got);
-            let blocked = any_hit(Portable, &bvh, o, d, 1e-9, 1.0 - 1e-9, skip);
+            let blocked = any_hit(Portable, &bvh, Query::new(o, d, 1e-9, 1.0 - 1e-9, skip));
             assert_eq!(blocked, want.is_some());
             // an unbounded ray finds the nearest hit of the whole line's forward half
             let far = bvh.first_hit(o, d, 1e-9, f64::INFINITY, skip);
