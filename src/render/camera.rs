@@ -20,7 +20,9 @@ use crate::job::Outcome;
 use crate::math::field::Field;
 use crate::scene::{Camera, Exposure, Job, SceneKind};
 use crate::three_d::bvh::Bvh;
-use crate::three_d::geometry::{add, cross, dot, norm, normalize, scale, sub, Parallelogram, V3};
+use crate::three_d::geometry::{
+    add, bounding_box, cross, dot, norm, normalize, scale, sub, Parallelogram, V3,
+};
 use image::{Rgb, RgbImage};
 use rayon::prelude::*;
 
@@ -288,20 +290,13 @@ pub fn surface_image(field: &Field, width: u32, height: u32, exposure: f64) -> R
 /// Where that is less than a fifth of the probe (a closed room, two plates facing each other,
 /// a ball in a room whose walls stand between it and every such camera), the same directions
 /// at 90° from half as far, the centre of the sphere looking out at 90° along a horizontal
-/// axis, and eyes inside the box of `part` near each of its side faces, upper edges and
-/// upper corners looking at its centre at 90° are tried too: of those that see at least [`NEARLY`] as much front as the
+/// axis, eyes inside the box of `part` near each of its side faces, upper edges and upper
+/// corners looking at its centre at 90°, and for a part of the scene eyes near the side
+/// faces, edges and corners of the whole scene's box looking at the part's centre are tried
+/// too: of those that see at least [`NEARLY`] as much front as the
 /// best, the one that sees the fronts of most patches is taken.
 fn frame(geo: &[Parallelogram], bvh: &Bvh, part: std::ops::Range<usize>) -> Camera {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for q in &geo[part.clone()] {
-        for c in q.outline() {
-            for a in 0..3 {
-                lo[a] = lo[a].min(c[a]);
-                hi[a] = hi[a].max(c[a]);
-            }
-        }
-    }
+    let (lo, hi) = bounding_box(&geo[part.clone()]);
     let center = scale(add(lo, hi), 0.5);
     let radius = 0.5 * norm(sub(hi, lo));
     let camera = |d: V3, dist: f64, fov_deg: f64| Camera {
@@ -362,20 +357,34 @@ fn frame(geo: &[Parallelogram], bvh: &Bvh, part: std::ops::Range<usize>) -> Came
     // its centre: a closed room seen from within, most of it in view, from eye height or
     // above (y is up). These and the centre's cameras do not look straight up or down: from
     // the room's centre, a room of boxes seen from above showed their tops and no more
-    let half = scale(sub(hi, lo), 0.5);
+    let within = |(lo, hi): (V3, V3), d: V3| {
+        let (middle, half) = (scale(add(lo, hi), 0.5), scale(sub(hi, lo), 0.5));
+        let m = d.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+        Camera {
+            eye: sub(middle, [0, 1, 2].map(|a| WITHIN * d[a] / m * half[a])),
+            ..camera(d, 0.0, 90.0)
+        }
+    };
     seen.extend(probe(
         directions
             .iter()
             .filter(|d| d[1] <= 0.0 && d[1] > -0.9)
-            .map(|&d| {
-                let m = d.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
-                Camera {
-                    eye: sub(center, [0, 1, 2].map(|a| WITHIN * d[a] / m * half[a])),
-                    ..camera(d, 0.0, 90.0)
-                }
-            })
+            .map(|&d| within((lo, hi), d))
             .collect(),
     ));
+    // a part of the scene, from the same places in the whole scene's box, lower ones too,
+    // looking at the part: a room's wall, floor or ceiling made of triangles is flat, and
+    // every eye in its own box stood in its plane
+    if part.len() < geo.len() {
+        let scene = bounding_box(geo);
+        seen.extend(probe(
+            directions
+                .iter()
+                .filter(|d| d[1].abs() < 0.9)
+                .map(|&d| within(scene, d))
+                .collect(),
+        ));
+    }
     // of the cameras that see nearly as much of the fronts as the best, the one that sees
     // most surfaces: inside a room every camera sees fronts alone, and the one from the
     // ceiling's centre saw its light and little else
@@ -662,7 +671,7 @@ mod tests {
 
     /// A closed room of side 10 (its surfaces facing in) with a light in the ceiling, and an
     /// octahedron of radius 1 about `c`, facing out, as the last surface.
-    fn room_with_octahedron(c: V3) -> Job {
+    fn room_document(c: V3) -> serde_json::Value {
         let quad = |name: &str, corners: [[f64; 3]; 4]| serde_json::json!({"name": name, "corners": corners, "reflectance": 0.5});
         let s = 10.0;
         let mut surfaces = vec![
@@ -704,8 +713,12 @@ mod tests {
             "triangles": [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4],
                           [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]}}),
         );
-        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": surfaces},
-            "solver": {"method": "hierarchical", "order": 0}});
+        serde_json::json!({"scene": {"kind": "3d", "surfaces": surfaces},
+            "solver": {"method": "hierarchical", "order": 0}})
+    }
+
+    fn room_with_octahedron(c: V3) -> Job {
+        let doc = room_document(c);
         crate::scene::parse_value(&doc, &crate::scene::Limits::default()).expect("a valid room")
     }
 
@@ -774,6 +787,36 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A flat mesh that is part of a closed room's shell (its floor as two triangles) is
+    /// pictured from inside the room: every eye in the floor's own box stands in its plane,
+    /// and every one outside the room sees the walls' backs.
+    #[test]
+    fn a_rooms_floor_made_of_triangles_is_pictured_from_inside_the_room() {
+        let mut doc = room_document([3.0, 3.0, 6.0]);
+        let surfaces = doc["scene"]["surfaces"].as_array_mut().expect("surfaces");
+        assert_eq!(surfaces[0]["name"], "floor");
+        surfaces[0] = serde_json::json!({"name": "floor", "reflectance": 0.5, "mesh": {
+            "positions": [[0.0, 0.0, 0.0], [0.0, 0.0, 10.0], [10.0, 0.0, 10.0], [10.0, 0.0, 0.0]],
+            "triangles": [[0, 1, 2], [0, 2, 3]]}});
+        let job = crate::scene::parse_value(&doc, &crate::scene::Limits::default()).expect("valid");
+        let stage = Stage::of(&job).expect("a 3D scene");
+        let SceneKind::ThreeD(d) = &job.scene.kind else {
+            unreachable!()
+        };
+        let part = d.surfaces[0].patches.clone();
+        assert_eq!(part.len(), 2);
+        let camera = frame(&stage.geo, &stage.bvh, part.clone());
+        let (share, patches) = front_facing(&stage.bvh, &stage.geo, &camera, part);
+        assert!(
+            camera.eye.iter().all(|&x| (0.0..10.0).contains(&x)),
+            "{camera:?}"
+        );
+        assert!(
+            share >= 0.2 && patches == 2,
+            "{share} of the picture on the floor"
+        );
     }
 
     /// Adaptive supersampling gives the supersampled image, where the edge test says the

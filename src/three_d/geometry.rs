@@ -33,6 +33,22 @@ pub(crate) fn cross(a: V3, b: V3) -> V3 {
 pub(crate) fn norm(a: V3) -> f64 {
     dot(a, a).sqrt()
 }
+
+/// The bounding box (least and greatest corner) of the patches `quads`.
+pub(crate) fn bounding_box(quads: &[Parallelogram]) -> (V3, V3) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for q in quads {
+        for c in q.outline() {
+            for i in 0..3 {
+                lo[i] = lo[i].min(c[i]);
+                hi[i] = hi[i].max(c[i]);
+            }
+        }
+    }
+    (lo, hi)
+}
+
 pub(crate) fn normalize(a: V3) -> V3 {
     scale(a, 1.0 / norm(a))
 }

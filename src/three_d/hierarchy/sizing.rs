@@ -10,7 +10,7 @@
 //! and at most [`MAX_LEVEL`]. When the document also gives `resolution`, ℓ_max is at most
 //! log₂ of it as well.
 
-use crate::three_d::geometry::{norm, Parallelogram};
+use crate::three_d::geometry::{bounding_box, norm, sub, Parallelogram};
 
 /// The deepest level of any surface's quadtree: 1024 × 1024 elements, the document's largest
 /// `resolution`.
@@ -68,17 +68,8 @@ impl Sizing {
 
 /// The diagonal of the bounding box of every corner of the scene.
 fn scene_diagonal(quads: &[Parallelogram]) -> f64 {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for q in quads {
-        for c in q.outline() {
-            for i in 0..3 {
-                lo[i] = lo[i].min(c[i]);
-                hi[i] = hi[i].max(c[i]);
-            }
-        }
-    }
-    norm([hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]])
+    let (lo, hi) = bounding_box(quads);
+    norm(sub(hi, lo))
 }
 
 #[cfg(test)]
