@@ -293,8 +293,8 @@ pub fn surface_image(field: &Field, width: u32, height: u32, exposure: f64) -> R
 /// axis, eyes inside the box of `part` near each of its side faces, upper edges and upper
 /// corners looking at its centre at 90°, and for a part of the scene eyes near the side
 /// faces, edges and corners of the whole scene's box looking at the part's centre are tried
-/// too: of those that see at least [`NEARLY`] as much front as the
-/// best, the one that sees the fronts of most patches is taken.
+/// too: of those that see at least [`NEARLY`] as much front as the best, the one that sees
+/// the fronts of most patches is taken.
 fn frame(geo: &[Parallelogram], bvh: &Bvh, part: std::ops::Range<usize>) -> Camera {
     let (lo, hi) = bounding_box(&geo[part.clone()]);
     let center = scale(add(lo, hi), 0.5);
@@ -330,14 +330,13 @@ fn frame(geo: &[Parallelogram], bvh: &Bvh, part: std::ops::Range<usize>) -> Came
     let dist = radius / (0.5 * fov.to_radians()).sin();
     let directions: Vec<V3> = axes.iter().copied().chain(diagonals).collect();
     let mut seen = probe(directions.iter().map(|&d| camera(d, dist, fov)).collect());
-    let outside = seen.iter().fold(
-        &seen[0],
-        |best, c| if c.0 .0 > best.0 .0 { c } else { best },
-    );
-    if outside.0 .0 >= 0.2 {
+    let outside = *seen
+        .iter()
+        .reduce(|best, c| if c.0.front > best.0.front { c } else { best })
+        .expect("fourteen cameras");
+    if outside.0.front >= 0.2 {
         return outside.1;
     }
-    let outside = *outside;
     let near = radius / (0.5 * 90f64.to_radians()).sin();
     seen = vec![outside];
     seen.extend(probe(
@@ -388,14 +387,18 @@ fn frame(geo: &[Parallelogram], bvh: &Bvh, part: std::ops::Range<usize>) -> Came
     // of the cameras that see nearly as much of the fronts as the best, the one that sees
     // most surfaces: inside a room every camera sees fronts alone, and the one from the
     // ceiling's centre saw its light and little else
-    let most = seen.iter().map(|c| c.0 .0).fold(0.0, f64::max);
-    let mut chosen = &seen[0];
-    for c in seen.iter().filter(|c| c.0 .0 >= NEARLY * most) {
-        if chosen.0 .0 < NEARLY * most || c.0 .1 > chosen.0 .1 {
-            chosen = c;
-        }
-    }
-    chosen.1
+    let most = seen.iter().map(|c| c.0.front).fold(0.0, f64::max);
+    seen.iter()
+        .filter(|c| c.0.front >= NEARLY * most)
+        .reduce(|best, c| {
+            if c.0.patches > best.0.patches {
+                c
+            } else {
+                best
+            }
+        })
+        .expect("the camera that sees most")
+        .1
 }
 
 /// How far toward the faces, edges and corners of a part's box the cameras inside it stand
@@ -407,14 +410,22 @@ const WITHIN: f64 = 0.85;
 /// ([`frame`]).
 const NEARLY: f64 = 0.9;
 
-/// The fraction of a 32 × 32 probe image of `camera` that falls on the front of a patch of
-/// `part`, and how many patches of `part` it sees the front of.
+/// What a 32 × 32 probe image of a camera sees of a part of the scene ([`front_facing`]).
+#[derive(Debug, Clone, Copy)]
+struct Probe {
+    /// The fraction of the image on the front of a patch of the part.
+    front: f64,
+    /// How many patches of the part it sees the front of.
+    patches: usize,
+}
+
+/// What a 32 × 32 probe image of `camera` sees of the fronts of the patches of `part`.
 fn front_facing(
     bvh: &Bvh,
     geo: &[Parallelogram],
     camera: &Camera,
     part: std::ops::Range<usize>,
-) -> (f64, usize) {
+) -> Probe {
     const N: u32 = 32;
     let view = View::new(camera, N, N);
     let mut front = Vec::new();
@@ -432,7 +443,10 @@ fn front_facing(
     let share = front.len() as f64 / (N * N) as f64;
     front.sort_unstable();
     front.dedup();
-    (share, front.len())
+    Probe {
+        front: share,
+        patches: front.len(),
+    }
 }
 
 struct View {
@@ -736,10 +750,11 @@ mod tests {
             };
             let part = d.surfaces[7].patches.clone();
             let camera = frame(&stage.geo, &stage.bvh, part.clone());
-            let seen = front_facing(&stage.bvh, &stage.geo, &camera, part.clone()).0;
+            let seen = front_facing(&stage.bvh, &stage.geo, &camera, part.clone()).front;
             let geo = &stage.geo[part];
             let bvh = Bvh::new(geo);
-            let alone = front_facing(&bvh, geo, &frame(geo, &bvh, 0..geo.len()), 0..geo.len()).0;
+            let alone =
+                front_facing(&bvh, geo, &frame(geo, &bvh, 0..geo.len()), 0..geo.len()).front;
             assert!(
                 seen >= 0.5 * alone,
                 "{seen} of the picture of an octahedron about {c:?} shows it, {alone} alone"
@@ -765,7 +780,10 @@ mod tests {
         assert_eq!(all.len(), 15);
         let camera = frame(&stage.geo, &stage.bvh, all.clone());
         assert!(camera.eye.iter().all(|&x| (0.0..10.0).contains(&x)));
-        let (share, patches) = front_facing(&stage.bvh, &stage.geo, &camera, all.clone());
+        let Probe {
+            front: share,
+            patches,
+        } = front_facing(&stage.bvh, &stage.geo, &camera, all.clone());
         assert!(share > 0.95, "{share} of the picture on fronts");
         assert!(patches >= 8, "{patches} patches seen");
         for d in [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] {
@@ -780,7 +798,8 @@ mod tests {
                     },
                     fov_deg: 90.0,
                 };
-                let from_centre = front_facing(&stage.bvh, &stage.geo, &centre, all.clone()).1;
+                let from_centre =
+                    front_facing(&stage.bvh, &stage.geo, &centre, all.clone()).patches;
                 assert!(
                     from_centre < patches,
                     "{from_centre} from the centre, {patches}"
@@ -808,7 +827,10 @@ mod tests {
         let part = d.surfaces[0].patches.clone();
         assert_eq!(part.len(), 2);
         let camera = frame(&stage.geo, &stage.bvh, part.clone());
-        let (share, patches) = front_facing(&stage.bvh, &stage.geo, &camera, part);
+        let Probe {
+            front: share,
+            patches,
+        } = front_facing(&stage.bvh, &stage.geo, &camera, part);
         assert!(
             camera.eye.iter().all(|&x| (0.0..10.0).contains(&x)),
             "{camera:?}"
