@@ -107,6 +107,11 @@ pub(super) struct ClusterLink {
     /// source that is an element and whose light is affine ([`Hierarchy::unit_irradiance`]):
     /// worked out at the first sweep after the link is made, and kept.
     pub(super) factors: Option<Box<[f32]>>,
+    /// The clusters and patches of a source cluster whose linear intensities sum to its
+    /// intensity toward the receiver's centre ([`Hierarchy::intensity_cut`]), for a source
+    /// whose normal cone straddles the plane normal to that direction: worked out at the
+    /// first sweep after the link is made, and kept.
+    pub(super) cut: Option<Box<[u32]>>,
 }
 
 impl ClusterLink {
@@ -1045,7 +1050,11 @@ impl Hierarchy<'_> {
             let intensity = source.toward(scale(d, -1.0 / r)).unwrap_or_else(|| {
                 *toward_centre.get_or_insert_with(|| {
                     let toward = sub(self.centre_of(l.recv), centre);
-                    self.intensity(l.src, scale(toward, 1.0 / norm(toward)), lights)
+                    let omega = scale(toward, 1.0 / norm(toward));
+                    match &l.cut {
+                        Some(cut) => self.intensity_over(cut, omega, lights),
+                        None => self.intensity(l.src, omega, lights),
+                    }
                 })
             });
             // (n · −ω) / r² at the member
@@ -1081,7 +1090,8 @@ impl Hierarchy<'_> {
 
     /// Works out [`Hierarchy::unit_irradiance`] for the links that lack it, in their order,
     /// while the kernels held stay within `cap` ([`KERNELS_HELD`]); the links beyond it
-    /// expand their source's light in each sweep.
+    /// expand their source's light in each sweep. And the [`ClusterLink::cut`] of the links
+    /// that lack it.
     fn hold_unit_irradiance(&mut self, cap: usize) {
         let mut links = std::mem::take(&mut self.cluster_links);
         let mut held: usize = links
@@ -1104,6 +1114,18 @@ impl Hierarchy<'_> {
             .zip(todo)
             .filter(|(_, take)| *take)
             .for_each(|(l, _)| l.factors = Some(this.unit_irradiance(l)));
+        links
+            .par_iter_mut()
+            .filter(|l| !l.affine && is_cluster(l.src) && l.cut.is_none())
+            .for_each(|l| {
+                let toward = sub(this.centre_of(l.recv), this.centre_of(l.src));
+                let omega = scale(toward, 1.0 / norm(toward));
+                if this.clusters.get(l.src).bound.side(omega).is_none() {
+                    let mut cut = Vec::new();
+                    this.intensity_cut(l.src, omega, &mut cut);
+                    l.cut = Some(cut.into_boxed_slice());
+                }
+            });
         self.cluster_links = links;
     }
 
@@ -1177,6 +1199,45 @@ impl Hierarchy<'_> {
             self.intensity(b, omega, lights),
         );
         [0, 1, 2].map(|ch| x[ch] + y[ch])
+    }
+
+    /// The clusters and patches under `id` (itself included) at which
+    /// [`Hierarchy::intensity`] toward the unit `omega` stops opening subtrees and that send
+    /// that way, into `out`: the intensity is then the sum of their linear ones
+    /// ([`Hierarchy::intensity_over`]). Which they are depends on the geometry alone, so a
+    /// link works them out once and reads their light in every sweep: opening the subtrees
+    /// along a ball's terminator in every sweep visited 59 clusters and patches per link, 16 M
+    /// in each sweep of 81 icospheres.
+    fn intensity_cut(&self, id: u32, omega: V3, out: &mut Vec<u32>) {
+        if !is_cluster(id) {
+            let el = &self.elements[id as usize];
+            if dot(self.geo.quads[el.piece.surface].n, omega) > 0.0 {
+                out.push(id);
+            }
+            return;
+        }
+        let cluster = self.clusters.get(id);
+        match cluster.bound.side(omega) {
+            Some(true) => out.push(id),
+            Some(false) => {}
+            None => {
+                let [a, b] = cluster.children;
+                self.intensity_cut(a, omega, out);
+                self.intensity_cut(b, omega, out);
+            }
+        }
+    }
+
+    /// The intensity toward the unit `omega` of the clusters and patches `cut`
+    /// ([`Hierarchy::intensity_cut`]), each linear in ω.
+    fn intensity_over(&self, cut: &[u32], omega: V3, lights: &Lights) -> Rgb {
+        cut.iter().fold([0.0; 3], |sum, &id| {
+            let i = self
+                .linear_source(id, lights)
+                .toward(omega)
+                .expect("a cut's clusters and patches are linear toward its direction");
+            [0, 1, 2].map(|ch| sum[ch] + i[ch])
+        })
     }
 
     /// The kernel that cluster link `l` applies between its receiving member `i` and its
@@ -1714,8 +1775,9 @@ mod tests {
         }
     }
 
-    /// A cluster's intensity from its subtrees ([`Hierarchy::intensity`]) is the sum over its
-    /// members of B̄_j A_j (n_j · ω)₊ / π, to rounding, for every cluster of a closed sphere
+    /// A cluster's intensity from its subtrees ([`Hierarchy::intensity`]), and from its cut
+    /// toward ω ([`Hierarchy::intensity_over`]), is the sum over its members of
+    /// B̄_j A_j (n_j · ω)₊ / π, to rounding, for every cluster of a closed sphere
     /// (the normal cones of its upper clusters hold every direction, those of its lower ones
     /// few) lit unevenly from a plate beside it, toward 200 directions each.
     #[test]
@@ -1775,6 +1837,9 @@ mod tests {
                         .for_each(|ch| want[ch] += c * area.sqrt() * b[ch] / std::f64::consts::PI);
                 }
                 let got = h.intensity(id, omega, &lights);
+                let mut cut = Vec::new();
+                h.intensity_cut(id, omega, &mut cut);
+                let over = h.intensity_over(&cut, omega, &lights);
                 let scale = members
                     .iter()
                     .map(|&(e, a, _)| a.sqrt() * h.elements[e as usize].sent0()[0])
@@ -1783,6 +1848,10 @@ mod tests {
                     assert!(
                         (got[ch] - want[ch]).abs() <= 1e-12 * scale,
                         "cluster {index} toward {omega:?}: {got:?} against {want:?}"
+                    );
+                    assert!(
+                        (over[ch] - want[ch]).abs() <= 1e-12 * scale,
+                        "cluster {index}'s cut toward {omega:?}: {over:?} against {want:?}"
                     );
                 }
                 opened += usize::from(h.clusters.nodes[index].bound.side(omega).is_none());
@@ -2061,6 +2130,7 @@ mod tests {
             sampled: 0.0,
             members: None,
             factors: None,
+            cut: None,
         };
         let mut out = vec![[0.0; 3]; 8];
         h.cluster_link_irradiance(&link, &h.lights(), &mut out);

@@ -702,6 +702,7 @@ impl Hierarchy<'_> {
                     sampled: g.sampled,
                     members: g.members,
                     factors: None,
+                    cut: None,
                 }),
                 ClusterVerdict::Hidden(smooth) => self.hidden_clusters.push((r, s, smooth)),
                 ClusterVerdict::Inert => {}
