@@ -73,10 +73,6 @@ const CLUSTER_RAYS: usize = 16;
 /// own visible fraction ([`Hierarchy::member_visibility`]).
 const MEMBER_RAYS: usize = 1;
 
-/// The source's points that the rays of a link's receiving members end at
-/// ([`Hierarchy::member_visibility`]).
-const SOURCE_POINTS: usize = 32;
-
 /// Draws of a receiving point before one on a covered part is taken after all
 /// ([`Hierarchy::sample`]): an end with an exposed share f keeps a covered point with
 /// probability (1 − f)¹⁶, and only such a point's ray may be wrongly blocked.
@@ -891,13 +887,6 @@ impl Hierarchy<'_> {
     /// view too little, with one sign from every source. A member's own rays are an estimate
     /// of its own V whose error changes sign from link to link and averages out over a
     /// member's many links.
-    ///
-    /// The source's points are drawn once per link, [`SOURCE_POINTS`] of them, and each ray
-    /// ends at the first of them that faces its member, from a place in their list drawn for
-    /// the ray: the points are drawn independently, so that this is a point drawn as the
-    /// link's are among those that face the member, as a fresh draw per ray would be. A
-    /// fresh draw per ray (by light, over the cluster's members, about two per ray where the
-    /// source is a ball) was a quarter of the 81 icospheres' first re-refinement.
     pub(super) fn member_visibility(&self, r: u32, s: u32, seed: u64) -> (Box<[u8]>, u64) {
         let mut rng = SplitMix(seed);
         let by_light = is_cluster(s) && self.clusters.light(s) > 0.0;
@@ -905,18 +894,6 @@ impl Hierarchy<'_> {
         let source_area = self.end_area(s);
         let span = self.clusters.span(r);
         let (sc, sr) = self.end(s).bound.sphere();
-        // the source's points, each with the light its ray is weighted by
-        let points: Vec<(Sample, f64)> = (0..SOURCE_POINTS)
-            .map(|_| {
-                let send = self.sample(s, sending, &mut rng);
-                let light = if by_light {
-                    self.drawn_light(&send, true)
-                } else {
-                    1.0
-                };
-                (send, light)
-            })
-            .collect();
         let mut rays = 0u64;
         let out = self.clusters.order()[span.clone()]
             .iter()
@@ -930,13 +907,17 @@ impl Hierarchy<'_> {
                 let disc = self.elements[p as usize].area.min(source_area) / std::f64::consts::PI;
                 for _ in 0..MEMBER_RAYS {
                     let recv = self.sample(p, Draw::Receiving, &mut rng);
-                    let first = (rng.next_u64() % SOURCE_POINTS as u64) as usize;
-                    let facing = (0..SOURCE_POINTS).find_map(|i| {
-                        let (send, w) = &points[(first + i) % SOURCE_POINTS];
-                        facing_kernel(&recv, send, disc).map(|k| (send, k * w))
+                    let facing = (0..COVERED_DRAWS).find_map(|_| {
+                        let send = self.sample(s, sending, &mut rng);
+                        facing_kernel(&recv, &send, disc).map(|k| (send, k))
                     });
-                    let Some((send, w)) = facing else {
+                    let Some((send, kernel)) = facing else {
                         continue;
+                    };
+                    let w = if by_light {
+                        kernel * self.drawn_light(&send, true)
+                    } else {
+                        kernel
                     };
                     rays += 1;
                     light += w;
