@@ -59,6 +59,12 @@ use rayon::prelude::*;
 /// before adding it to their H ([`Hierarchy::gather_clusters`]): 24 MB of buffer.
 const RUN_MEMBERS: usize = 1 << 20;
 
+/// The stretches of members into which [`Hierarchy::gather_clusters`] adds a run's
+/// irradiance in parallel: each stretch reads the whole run's list of receivers, so a few
+/// per thread. Serial, that addition was a third of the 81 icospheres' gather (0.33 s of
+/// 1.15 s a sweep).
+const MERGE_STRETCHES: usize = 16;
+
 /// The most kernels of cluster links from an element ([`Hierarchy::unit_irradiance`]) held
 /// at once, one f32 each: 512 MiB (the 81 icospheres' 10⁵ triangles hold 54 M).
 const KERNELS_HELD: usize = 1 << 27;
@@ -429,13 +435,13 @@ impl Hierarchy<'_> {
     /// The [`Emitter`] of every cluster from the members' B, children before parents: the
     /// two subtrees of a large cluster in parallel (in every sweep; sequential, it took the
     /// 81 icospheres 0.14 s a sweep, on 2 cores 0.075 s).
-    fn emitters(&self) -> Vec<Emitter> {
-        let mut out = vec![Emitter::default(); self.clusters.nodes.len()];
+    fn emitters(&self, out: &mut Vec<Emitter>) {
+        // every slot is written below, children before parents
+        out.resize(self.clusters.nodes.len(), Emitter::default());
         if !out.is_empty() {
             let root = crate::three_d::cluster::CLUSTER;
-            self.subtree_emitters(root, &mut out, PARALLEL_EMITTERS);
+            self.subtree_emitters(root, out, PARALLEL_EMITTERS);
         }
-        out
     }
 
     /// The [`Emitter`]s of cluster `id` and of the clusters under it into `out`, which holds
@@ -1150,15 +1156,27 @@ impl Hierarchy<'_> {
     }
 
     /// The [`Lights`] of the sweep, from the members' B.
+    #[cfg(test)]
     fn lights(&self) -> Lights {
-        let emitters = self.emitters();
-        Lights {
-            clusters: emitters.iter().map(|e| e.normal).collect(),
-            emitters,
-            patches: (0..self.quads.len() as u32)
-                .map(|p| self.patch_light(p))
-                .collect(),
-        }
+        let mut lights = Lights::default();
+        self.relight_into(&mut lights);
+        lights
+    }
+
+    /// Fills `lights` from the members' B, in the allocations it has (100 MB of [`Emitter`]s
+    /// for 10⁵ triangles, in every sweep).
+    fn relight_into(&self, lights: &mut Lights) {
+        self.emitters(&mut lights.emitters);
+        lights.clusters.clear();
+        lights
+            .clusters
+            .par_extend(lights.emitters.par_iter().map(|e| e.normal));
+        lights.patches.clear();
+        lights.patches.par_extend(
+            (0..self.quads.len() as u32)
+                .into_par_iter()
+                .map(|p| self.patch_light(p)),
+        );
     }
 
     /// The radiant intensity Σ_j B̄_j A_j (n_j · ω)₊ / π of cluster or element `id` toward
@@ -1287,14 +1305,16 @@ impl Hierarchy<'_> {
     }
 
     /// Adds the cluster links' irradiance to their receivers' H: a run of links at a time,
-    /// the links of a run in parallel, then their receivers' members in order (so that the
-    /// sums do not depend on the threads, and the buffer on the number of links). A run
+    /// the links of a run in parallel, then their receivers' members, stretches of them in
+    /// parallel, each member's sum over the links in their order (so that the sums do not
+    /// depend on the threads, and the buffer on the number of links). A run
     /// holds links until their receivers' members reach [`RUN_MEMBERS`] (a link into a
     /// cluster of a thousand triangles fills a thousand slots: runs of a fixed number of
     /// links took 190 MB of buffer in a 35 k-triangle scene).
     pub(super) fn gather_clusters(&mut self) {
         self.hold_unit_irradiance(KERNELS_HELD);
-        let lights = self.lights();
+        let mut lights = std::mem::take(&mut self.lights);
+        self.relight_into(&mut lights);
         // the H each member gathers, in the clusters' order: a cluster's members are one run
         let mut gathered = vec![[0.0; 3]; self.clusters.order().len()];
         let mut buffer: Vec<Rgb> = Vec::new();
@@ -1308,10 +1328,13 @@ impl Hierarchy<'_> {
             }
             let links = &self.cluster_links[start..end];
             let counts: Vec<usize> = links.iter().map(|l| self.member_count(l.recv)).collect();
-            buffer.clear();
-            buffer.resize(counts.iter().sum(), [0.0; 3]);
+            // every slot is written by its link: the buffer grows, but is not cleared
+            let total = counts.iter().sum();
+            if buffer.len() < total {
+                buffer.resize(total, [0.0; 3]);
+            }
             let mut slices = Vec::with_capacity(links.len());
-            let mut rest = &mut buffer[..];
+            let mut rest = &mut buffer[..total];
             for &c in &counts {
                 let (a, b) = rest.split_at_mut(c);
                 slices.push(a);
@@ -1322,21 +1345,40 @@ impl Hierarchy<'_> {
                 .into_par_iter()
                 .zip(links.par_iter())
                 .for_each(|(out, l)| this.cluster_link_irradiance(l, &lights, out));
+            // each cluster receiver's members in `gathered` and where their H is in `buffer`
+            let mut spans = Vec::with_capacity(links.len());
             let mut at = 0;
             for l in start..end {
                 let recv = self.cluster_links[l].recv;
                 if is_cluster(recv) {
                     let span = self.clusters.span(recv);
                     let n = span.len();
-                    for (g, h) in gathered[span].iter_mut().zip(&buffer[at..at + n]) {
-                        (0..3).for_each(|ch| g[ch] += h[ch]);
-                    }
+                    spans.push((span, at));
                     at += n;
                 } else {
                     add_constant(&mut self.elements[recv as usize], buffer[at]);
                     at += 1;
                 }
             }
+            // the members in parallel, a stretch of them each, every member's sum over the
+            // run's links in their order
+            let stretch = gathered.len().div_ceil(MERGE_STRETCHES).max(1);
+            gathered
+                .par_chunks_mut(stretch)
+                .enumerate()
+                .for_each(|(i, part)| {
+                    let lo = i * stretch;
+                    let hi = lo + part.len();
+                    for (span, from) in &spans {
+                        let (a, b) = (span.start.max(lo), span.end.min(hi));
+                        if a < b {
+                            let h = &buffer[from + (a - span.start)..][..b - a];
+                            for (g, h) in part[a - lo..b - lo].iter_mut().zip(h) {
+                                (0..3).for_each(|ch| g[ch] += h[ch]);
+                            }
+                        }
+                    }
+                });
             start = end;
         }
         for (&p, h) in self.clusters.order().iter().zip(&gathered) {
@@ -1344,6 +1386,7 @@ impl Hierarchy<'_> {
                 add_constant(&mut self.elements[p as usize], *h);
             }
         }
+        self.lights = lights;
     }
 }
 
@@ -1353,7 +1396,8 @@ impl Hierarchy<'_> {
 /// each of the 16 M clusters and patches that a sweep of 81 icospheres (10⁵ triangles)
 /// opens, the sweep's cluster links took 1.7–2.0 s and the whole solve 28.8 s; 24.8 s with
 /// these (the same B to the bit).
-struct Lights {
+#[derive(Default)]
+pub(super) struct Lights {
     emitters: Vec<Emitter>,
     clusters: Vec<[V3; 3]>,
     patches: Vec<(V3, Rgb)>,

@@ -119,6 +119,8 @@ struct Hierarchy<'g> {
     members: Vec<clustered::Member>,
     /// Links with a cluster at one end or both.
     cluster_links: Vec<clustered::ClusterLink>,
+    /// The light of the clusters and patches, refilled in each sweep in the same memory.
+    lights: clustered::Lights,
     /// Cluster pairs accepted without a link because none of their rays got through, with
     /// the oracle's factor for what the rays may have missed.
     hidden_clusters: Vec<(u32, u32, f64)>,
@@ -215,6 +217,7 @@ impl<'g> Hierarchy<'g> {
             clusters,
             members,
             cluster_links: Vec::new(),
+            lights: clustered::Lights::default(),
             hidden_clusters: Vec::new(),
             cluster_state: Vec::new(),
             rays: 0,
