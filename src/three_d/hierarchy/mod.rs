@@ -119,7 +119,8 @@ struct Hierarchy<'g> {
     members: Vec<clustered::Member>,
     /// Links with a cluster at one end or both.
     cluster_links: Vec<clustered::ClusterLink>,
-    /// The light of the clusters and patches, refilled in each sweep in the same memory.
+    /// The light of the clusters and patches, refilled in each sweep of a pass in the same
+    /// memory.
     lights: clustered::Lights,
     /// Cluster pairs accepted without a link because none of their rays got through, with
     /// the oracle's factor for what the rays may have missed.
@@ -209,7 +210,9 @@ impl<'g> Hierarchy<'g> {
             evaluations: std::sync::atomic::AtomicU64::new(0),
             hidden: Vec::new(),
             masks,
+            // a box query per surface: 0.24 s of 10⁵ triangles on one thread
             contacts: (0..quads.len())
+                .into_par_iter()
                 .map(|i| crate::three_d::cover::contacts(&all, i))
                 .collect(),
             elements,
@@ -338,6 +341,8 @@ impl<'g> Hierarchy<'g> {
         // ([`Hierarchy::cluster_visibility`]): every one is judged again
         let unlit = !self.b_known();
         self.solved = true;
+        // the sweeps' light (100 MB for 10⁵ triangles) is let go while the refinement runs
+        self.lights = clustered::Lights::default();
         self.typical = self.typical_radiosity();
         for root in 0..self.quads.len() {
             self.measure_detail(root as u32);
@@ -965,6 +970,9 @@ pub(crate) fn solve(
         last = refined == 0;
     }
 
+    // the sweeps' light is not needed for the results: held through them, it was 113 MB
+    // more of the 81 icospheres' peak (1 032 against 920 MB)
+    h.lights = clustered::Lights::default();
     timings.insert("refinement".into(), refine_ms);
     timings.insert("solve".into(), solve_ms);
     // the numbers count a covered part as B = E, H = 0; the images show the exposed part's
