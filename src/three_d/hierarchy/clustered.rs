@@ -1036,8 +1036,7 @@ impl Hierarchy<'_> {
             let r = r2.sqrt();
             let intensity = source.toward(scale(d, -1.0 / r)).unwrap_or_else(|| {
                 *toward_centre.get_or_insert_with(|| {
-                    let toward = sub(self.centre_of(l.recv), centre);
-                    let omega = scale(toward, 1.0 / norm(toward));
+                    let omega = self.toward_receiver(l);
                     match &l.cut {
                         Some(cut) => self.intensity_over(cut, omega, lights),
                         None => self.intensity(l.src, omega, lights),
@@ -1075,6 +1074,13 @@ impl Hierarchy<'_> {
         out.into_boxed_slice()
     }
 
+    /// The unit direction from link `l`'s source's centre to its receiver's: the one its
+    /// [`ClusterLink::cut`] is worked out for and the sweep's intensity is read toward.
+    fn toward_receiver(&self, l: &ClusterLink) -> V3 {
+        let toward = sub(self.centre_of(l.recv), self.centre_of(l.src));
+        scale(toward, 1.0 / norm(toward))
+    }
+
     /// Works out [`Hierarchy::unit_irradiance`] for the links that lack it, in their order,
     /// while the kernels held stay within `cap` ([`KERNELS_HELD`]); the links beyond it
     /// expand their source's light in each sweep. And the [`ClusterLink::cut`] of the links
@@ -1105,8 +1111,7 @@ impl Hierarchy<'_> {
             .par_iter_mut()
             .filter(|l| !l.affine && is_cluster(l.src) && l.cut.is_none())
             .for_each(|l| {
-                let toward = sub(this.centre_of(l.recv), this.centre_of(l.src));
-                let omega = scale(toward, 1.0 / norm(toward));
+                let omega = this.toward_receiver(l);
                 if this.clusters.get(l.src).bound.side(omega).is_none() {
                     let mut cut = Vec::new();
                     this.intensity_cut(l.src, omega, &mut cut);
