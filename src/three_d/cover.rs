@@ -135,17 +135,17 @@ impl Mask {
     /// is measured by its whole surface ([`widths`]).
     pub(super) fn of_scene(
         bvh: &Bvh,
-        all: &Bvh,
+        contacts: &[Vec<[[f64; 2]; 2]>],
         groups: &[Vec<u32>],
         rules: &Rules,
         res: impl Fn(usize) -> usize + Sync,
     ) -> Vec<Option<Mask>> {
-        let quads = all.quads();
-        let lidded = lids(all, &widths(quads, groups), rules.lid_gap);
+        let quads = bvh.quads();
+        let lidded = lids(bvh, &widths(quads, groups), rules.lid_gap);
         (0..quads.len())
             .into_par_iter()
             .map(|i| {
-                (lidded[i] || !contacts(all, i).is_empty())
+                (lidded[i] || !contacts[i].is_empty())
                     .then(|| Mask::probe(quads, bvh, i, res(i), rules.sending_share))
                     .filter(|m| m.cells.iter().any(|c| *c != Cell::Open))
             })
@@ -528,7 +528,7 @@ pub(super) fn contacts(all: &Bvh, i: usize) -> Vec<[[f64; 2]; 2]> {
     let mut lines = Vec::new();
     let (lo, hi) = padded_box(q, tol);
     let mut near = Vec::new();
-    all.any_in_box(lo, hi, |j| {
+    all.any_in_scene_box(lo, hi, |j| {
         near.push(j);
         false
     });
@@ -605,7 +605,7 @@ fn lids(all: &Bvh, widths: &[f64], gap: f64) -> Vec<bool> {
         .map(|j| {
             let (lo, hi) = padded_box(&quads[j], gap * widths[j]);
             let mut under = Vec::new();
-            all.any_in_box(lo, hi, |i| {
+            all.any_in_scene_box(lo, hi, |i| {
                 if lies_over(quads, j, i, widths, gap) {
                     under.push(i as u32);
                 }
@@ -630,7 +630,7 @@ fn lidded(all: &Bvh, i: usize, widths: &[f64]) -> bool {
     let quads = all.quads();
     let widest = widths.iter().copied().fold(0.0, f64::max);
     let (lo, hi) = padded_box(&quads[i], gap * widest);
-    all.any_in_box(lo, hi, |j| lies_over(quads, j, i, widths, gap))
+    all.any_in_scene_box(lo, hi, |j| lies_over(quads, j, i, widths, gap))
 }
 
 /// Whether patch `j` lies flat over patch `i` as a lid: facing the same way, in front of it by
@@ -974,15 +974,10 @@ mod tests {
     /// The masks of `quads`, each patch a surface of its own, on an 8 × 8 grid, by the
     /// default rules.
     fn masks_alone(quads: &[Parallelogram]) -> Vec<Option<Mask>> {
-        let all = Bvh::new(quads);
+        let bvh = Bvh::occluders(quads);
+        let contacts: Vec<_> = (0..quads.len()).map(|i| contacts(&bvh, i)).collect();
         let groups = each_alone(quads.len());
-        Mask::of_scene(
-            &Bvh::occluders(quads),
-            &all,
-            &groups,
-            &Rules::DEFAULT,
-            |_| 8,
-        )
+        Mask::of_scene(&bvh, &contacts, &groups, &Rules::DEFAULT, |_| 8)
     }
 
     /// A `w × h` grid over parallelogram `c`, two triangles a cell, facing as `c` does.
@@ -1109,7 +1104,8 @@ mod tests {
             assert_eq!(lids(&all, &w, Rules::DEFAULT.lid_gap), direct);
         }
         let bvh = Bvh::occluders(&quads);
-        let m = Mask::of_scene(&bvh, &all, &groups, &Rules::DEFAULT, |_| 8)
+        let contacts: Vec<_> = (0..quads.len()).map(|i| contacts(&bvh, i)).collect();
+        let m = Mask::of_scene(&bvh, &contacts, &groups, &Rules::DEFAULT, |_| 8)
             .remove(0)
             .expect("the floor under the rug is covered");
         // the floor's s runs along z and t along x: the rug is [0.375, 0.625]²
