@@ -23,7 +23,9 @@
 //!    ε = 4e-3); with the shares, 0.31 %. F_RS is sampled: 64 area-stratified points of R,
 //!    each to every patch of S in closed form ([`crate::three_d::transfer::point_polygon`]), or
 //!    to 64 area-stratified triangles of a larger mesh, each standing for its share of the
-//!    mesh's area. A link from a cluster, which may hold many surfaces, takes the weight of
+//!    mesh's area; of each patch only its front, which alone sends light (the closed form
+//!    counts either side: a closed mesh's far half and a surface seen from behind its plane
+//!    counted as much as what faces the point). A link from a cluster, which may hold many surfaces, takes the weight of
 //!    R's largest source.
 //! 2. **Relative accuracy** (the share of a dim receiver). The estimate is absolute, so a
 //!    receiver at a tenth of the typical B would take links ten times too coarse for the
@@ -38,7 +40,7 @@
 use super::Hierarchy;
 use crate::scene::Quad;
 use crate::three_d::cluster::Bound;
-use crate::three_d::geometry::{Piece, V3};
+use crate::three_d::geometry::{dot, sub, Piece, V3};
 use crate::three_d::projection::Geometry;
 #[cfg(doc)]
 use crate::three_d::rules::Rules;
@@ -77,7 +79,7 @@ pub(super) fn indirect_weights(geo: &Geometry, quads: &[Quad], groups: &[Vec<u32
         _ => bounds[a].facing(&bounds[b]),
     };
     let points: Vec<Vec<(V3, V3)>> = groups.iter().map(|g| receiver_points(geo, g)).collect();
-    let sources: Vec<Vec<([V3; 4], f64)>> = groups.iter().map(|g| source_pieces(geo, g)).collect();
+    let sources: Vec<Vec<SourcePiece>> = groups.iter().map(|g| source_pieces(geo, g)).collect();
     let rows: Vec<Row> = (0..groups.len())
         .into_par_iter()
         .map(|a| {
@@ -183,18 +185,30 @@ fn receiver_points(geo: &Geometry, group: &[u32]) -> Vec<(V3, V3)> {
         .collect()
 }
 
+/// A patch of a source surface in the sampled form factors: its corners, its normal, and the
+/// share of the surface's area it stands for, over its own.
+struct SourcePiece {
+    corners: [V3; 4],
+    normal: V3,
+    weight: f64,
+}
+
 /// The patches of a source surface with the area each stands for: all of them with their own
 /// when there are at most [`SAMPLES`], else [`SAMPLES`] taken at equal steps of the cumulative
 /// area, each for a [`SAMPLES`]th of the whole.
-fn source_pieces(geo: &Geometry, group: &[u32]) -> Vec<([V3; 4], f64)> {
-    let corners = |p: u32| Piece::whole(p as usize).corners(&geo.quads);
+fn source_pieces(geo: &Geometry, group: &[u32]) -> Vec<SourcePiece> {
+    let piece = |p: u32, weight: f64| SourcePiece {
+        corners: Piece::whole(p as usize).corners(&geo.quads),
+        normal: geo.quads[p as usize].n,
+        weight,
+    };
     if group.len() <= SAMPLES {
-        return group.iter().map(|&p| (corners(p), 1.0)).collect();
+        return group.iter().map(|&p| piece(p, 1.0)).collect();
     }
     let total: f64 = group.iter().map(|&p| geo.quads[p as usize].area).sum();
     by_area(geo, group)
         .into_iter()
-        .map(|(p, area)| (corners(p), total / SAMPLES as f64 / area))
+        .map(|(p, area)| piece(p, total / SAMPLES as f64 / area))
         .collect()
 }
 
@@ -213,14 +227,18 @@ fn by_area(geo: &Geometry, group: &[u32]) -> Vec<(u32, f64)> {
     out
 }
 
-/// The mean over `points` of the unoccluded form factor to the weighted `pieces`.
-fn form_factor(points: &[(V3, V3)], pieces: &[([V3; 4], f64)]) -> f64 {
+/// The mean over `points` of the unoccluded form factor to the weighted `pieces`: of each
+/// piece only the front, which alone sends light (the closed form counts the solid angle of
+/// either side, and a closed mesh's far half, or a surface seen from behind its plane, would
+/// count as much as what faces the point).
+fn form_factor(points: &[(V3, V3)], pieces: &[SourcePiece]) -> f64 {
     let sum: f64 = points
         .iter()
         .map(|&(x, n)| {
             pieces
                 .iter()
-                .map(|(c, weight)| weight * point_polygon(x, n, c))
+                .filter(|p| dot(p.normal, sub(x, p.corners[0])) > 0.0)
+                .map(|p| p.weight * point_polygon(x, n, &p.corners))
                 .sum::<f64>()
         })
         .sum();
@@ -270,7 +288,7 @@ mod tests {
     use super::*;
     use crate::three_d::hierarchy::refine::tests::cube;
     use crate::three_d::hierarchy::surface_groups;
-    use crate::three_d::hierarchy::tests::at_defaults;
+    use crate::three_d::hierarchy::tests::{at_defaults, patches};
 
     /// The form factors of a unit cube's faces in closed form (Howell's catalogue, C-14 and
     /// C-11): to the opposite face and to an adjacent one.
@@ -306,6 +324,69 @@ mod tests {
         assert!((w.between(1, 0) - 5.0).abs() < 0.05, "{w:?}");
         let h = at_defaults(&geo, quads);
         assert_eq!(h.indirect, w);
+    }
+
+    /// A closed convex mesh sends light only from the faces that look at a point, and every
+    /// line through it crosses it twice: from a point with the whole mesh in front of it, the
+    /// form factor of its front is half the solid angle that the closed form gives for all of
+    /// its faces, either side counted (which is what the sampled form factor was before it
+    /// left out the faces seen from behind).
+    #[test]
+    fn a_closed_mesh_sends_from_the_faces_that_look_at_the_point() {
+        // a unit cube of 12 outward triangles standing 1 unit above a 4 × 4 floor
+        let positions: Vec<[f64; 3]> = (0..8)
+            .map(|i| {
+                let b = |k: u32| f64::from((i >> k) & 1);
+                [1.0 + b(0), 1.0 + b(1), 1.0 + b(2)]
+            })
+            .collect();
+        let faces = [
+            [0, 4, 6, 2], // x = 1
+            [1, 3, 7, 5], // x = 2
+            [0, 1, 5, 4], // y = 1, toward the floor
+            [2, 6, 7, 3], // y = 2
+            [0, 2, 3, 1], // z = 1
+            [4, 5, 7, 6], // z = 2
+        ];
+        let triangles: Vec<[usize; 3]> = faces
+            .iter()
+            .flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]])
+            .collect();
+        let doc = serde_json::json!({"scene": {"kind": "3d", "surfaces": [
+            {"name": "floor", "corners": [[0, 0, 0], [0, 0, 4], [4, 0, 4], [4, 0, 0]],
+             "reflectance": 0.5},
+            {"name": "box", "mesh": {"positions": positions, "triangles": triangles},
+             "reflectance": 0.5},
+            {"name": "light", "corners": [[0, 3, 0], [4, 3, 0], [4, 3, 4], [0, 3, 4]],
+             "reflectance": 0.0, "emission": 1.0}]},
+            "solver": {"method": "hierarchical"}});
+        let quads = patches(&doc);
+        let geo = Geometry::new(&quads);
+        let centre = [1.5, 1.5, 1.5];
+        for q in &geo.quads[1..13] {
+            let c = q.at(1.0 / 3.0, 1.0 / 3.0);
+            assert!(dot(q.n, sub(c, centre)) > 0.0, "outward");
+        }
+        let groups = surface_groups(&quads);
+        let points = receiver_points(&geo, &groups[0]);
+        let pieces = source_pieces(&geo, &groups[1]);
+        assert_eq!(pieces.len(), 12);
+        let front = form_factor(&points, &pieces);
+        let either_side: f64 = points
+            .iter()
+            .map(|&(x, n)| {
+                pieces
+                    .iter()
+                    .map(|p| point_polygon(x, n, &p.corners))
+                    .sum::<f64>()
+            })
+            .sum::<f64>()
+            / points.len() as f64;
+        assert!(front > 0.01, "{front}");
+        assert!(
+            (front - 0.5 * either_side).abs() < 1e-12,
+            "{front} against {either_side}"
+        );
     }
 
     /// One large source close by and a small one far away: the large one's weight is 1 plus
