@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Writes the gallery of 3D test scenes (rooms with boxes, rotated boxes, a small object, a box
-against a wall, a light in a corner, spheres and boxes as meshes) as job documents at the solver's defaults
-(hierarchical, order 1, the default epsilon and element size). The tests in
-tests/gallery.rs solve each and compare it with a path-traced reference.
+against a wall, a light in a corner, spheres and boxes as meshes, and small objects placed
+otherwise) as job documents at the solver's defaults (hierarchical, order 1, the default epsilon
+and element size). The tests in tests/gallery.rs solve each but the small objects of
+small_objects() and compare it with a path-traced reference.
 
     python3 scenes/gallery/make.py        # rewrites scenes/gallery/*.json
 """
@@ -148,8 +149,8 @@ def small_object():
 
 def small_objects():
     """Small objects placed otherwise than the gallery's small cube, the scenes of the
-    "Small objects elsewhere in the room" section of benches/README.md: at the defaults most
-    of them miss the gallery's requirement, and no test holds them to it yet."""
+    "Small objects elsewhere in the room" section of benches/README.md: at the defaults each
+    of them misses the gallery's requirement, and no test holds them to it yet."""
     cube = [0.8, 0.3, 0.2]
 
     def tall_room():
@@ -171,7 +172,7 @@ def small_objects():
         "small-cube-in-a-corner": doc("A small cube near a corner", in_a_corner),
         "small-cube-turned": doc("A small cube turned by 30 degrees", turned),
         "small-slab": doc("A flat slab in a large room", slab),
-        "small-cube-corner-light": doc("A small cube under a light in a corner", corner_light),
+        "small-cube-corner-light": doc("A small turned cube in a room lit from a corner", corner_light),
         "small-cube-beside-a-box": doc("A small cube beside a large box", beside),
     }
 

@@ -130,7 +130,8 @@ impl Mask {
     /// (`None` for the rest, and where nothing turned out covered), at `res` finest cells per
     /// side.
     ///
-    /// `bvh` holds the occluders ([`Bvh::occluders`]), `all` every surface ([`Bvh::new`]).
+    /// `bvh` holds the occluders ([`Bvh::occluders`]; its box queries over every surface,
+    /// [`Bvh::any_in_scene_box`], find the lids), `contacts` each surface's [`contacts`].
     /// `groups` lists the patches of each of the document's surfaces (a mesh is one): a lid
     /// is measured by its whole surface ([`widths`]).
     pub(super) fn of_scene(
@@ -519,8 +520,8 @@ fn pseudo_inverse(g: &[f64], n: usize, sending_share: f64) -> (Vec<f64>, Vec<f64
 /// that held the edge's midpoint, the box's faces next to the foot came out 0.2 % dark in a
 /// furnace, where every face has B = E / (1 − ρ)).
 ///
-/// `all` holds every surface of the scene ([`Bvh::new`]); only those whose box meets i's are
-/// looked at (such an edge passes through i).
+/// `all` answers box queries over every surface of the scene ([`Bvh::any_in_scene_box`]);
+/// only those whose box meets i's are looked at (such an edge passes through i).
 pub(super) fn contacts(all: &Bvh, i: usize) -> Vec<[[f64; 2]; 2]> {
     let quads = all.quads();
     let q = &quads[i];
@@ -594,7 +595,7 @@ fn clip_inside(a: [f64; 2], b: [f64; 2], tri: bool) -> Option<[[f64; 2]; 2]> {
 /// Over part of it: a corner of the lid over i, or a corner of i under the lid (a triangle of
 /// a meshed ceiling wholly under a light holds none of the light's corners).
 ///
-/// `all` holds every surface ([`Bvh::new`]). Each lid j is looked for over the patches within
+/// `all` answers box queries over every surface ([`Bvh::any_in_scene_box`]). Each lid j is looked for over the patches within
 /// `gap` of its own width of its box; looking around each patch i instead, as far as the
 /// widest surface's gap (a wall's, 0.2 units in a 10-unit room), held thousands of others
 /// around each of 10⁶ small triangles: 85 % of such a job's first minutes, on one core.

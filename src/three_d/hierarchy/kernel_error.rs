@@ -29,7 +29,6 @@
 use super::clustered::ClusterLink;
 use super::Hierarchy;
 use crate::math::basis::legendre;
-use crate::three_d::bvh::Bvh;
 use crate::three_d::cluster::is_cluster;
 use crate::three_d::geometry::{norm, quad_quad, sub, Piece, V3};
 use crate::three_d::transfer;
@@ -303,7 +302,6 @@ impl Hierarchy<'_> {
     /// hierarchy over every patch.
     fn touching_surfaces(&self, group_of: &[usize]) -> Vec<(usize, usize)> {
         let quads = &self.geo.quads;
-        let all = Bvh::new(quads);
         let largest = quads.iter().map(|q| q.diameter()).fold(0.0, f64::max);
         let found: Vec<Vec<(usize, usize)>> = (0..quads.len())
             .into_par_iter()
@@ -320,7 +318,7 @@ impl Hierarchy<'_> {
                 let pad = 1e-9 * largest;
                 let (lo, hi) = (lo.map(|v| v - pad), hi.map(|v| v + pad));
                 let mut out = Vec::new();
-                all.any_in_box(lo, hi, |j| {
+                self.geo.bvh.any_in_scene_box(lo, hi, |j| {
                     if j > i {
                         let b = &quads[j];
                         let tol = 1e-9 * a.diameter().max(b.diameter());

@@ -25,8 +25,8 @@
 //!    to 64 area-stratified triangles of a larger mesh, each standing for its share of the
 //!    mesh's area; of each patch only its front, which alone sends light (the closed form
 //!    counts either side: a closed mesh's far half and a surface seen from behind its plane
-//!    counted as much as what faces the point). A link from a cluster, which may hold many surfaces, takes the weight of
-//!    R's largest source.
+//!    counted as much as what faces the point). A link from a cluster, which may hold many
+//!    surfaces, takes the weight of R's largest source.
 //! 2. **Relative accuracy** (the share of a dim receiver). The estimate is absolute, so a
 //!    receiver at a tenth of the typical B would take links ten times too coarse for the
 //!    relative accuracy of the others. A receiver element whose mean B is below the typical B
@@ -330,7 +330,7 @@ mod tests {
     /// line through it crosses it twice: from a point with the whole mesh in front of it, the
     /// form factor of its front is half the solid angle that the closed form gives for all of
     /// its faces, either side counted (which is what the sampled form factor was before it
-    /// left out the faces seen from behind).
+    /// left out the faces seen from behind); and a square seen only from behind sends nothing.
     #[test]
     fn a_closed_mesh_sends_from_the_faces_that_look_at_the_point() {
         // a unit cube of 12 outward triangles standing 1 unit above a 4 × 4 floor
@@ -358,7 +358,9 @@ mod tests {
             {"name": "box", "mesh": {"positions": positions, "triangles": triangles},
              "reflectance": 0.5},
             {"name": "light", "corners": [[0, 3, 0], [4, 3, 0], [4, 3, 4], [0, 3, 4]],
-             "reflectance": 0.0, "emission": 1.0}]},
+             "reflectance": 0.0, "emission": 1.0},
+            {"name": "turned away", "corners": [[1, 0.5, 1], [1, 0.5, 2], [2, 0.5, 2], [2, 0.5, 1]],
+             "reflectance": 0.5}]},
             "solver": {"method": "hierarchical"}});
         let quads = patches(&doc);
         let geo = Geometry::new(&quads);
@@ -387,6 +389,11 @@ mod tests {
             (front - 0.5 * either_side).abs() < 1e-12,
             "{front} against {either_side}"
         );
+        // a square above the floor that faces up shows the floor only its back
+        let away = source_pieces(&geo, &groups[3]);
+        let (x, n) = points[27];
+        assert!(point_polygon(x, n, &away[0].corners) > 0.1);
+        assert_eq!(form_factor(&points, &away), 0.0);
     }
 
     /// One large source close by and a small one far away: the large one's weight is 1 plus
