@@ -155,11 +155,7 @@ impl<'g> Hierarchy<'g> {
             .fold(0.0, f64::max);
         let levels: Vec<u32> = geo.quads.iter().map(|q| sizing.finest_level(q)).collect();
         let groups = surface_groups(quads);
-        // a box query per surface: 0.24 s of 10⁵ triangles on one thread
-        let contacts: Vec<_> = (0..quads.len())
-            .into_par_iter()
-            .map(|i| crate::three_d::cover::contacts(&geo.bvh, i))
-            .collect();
+        let contacts = crate::three_d::cover::scene_contacts(&geo.bvh);
         let masks = Mask::of_scene(&geo.bvh, &contacts, &groups, rules, |i| 1 << levels[i]);
         let elements: Vec<Element> = quads
             .iter()
