@@ -110,6 +110,11 @@ pub struct Bvh {
     avx2: Option<pulp::x86::V3>,
 }
 
+/// Whether two boxes, each (lo, hi), meet (touching counts).
+pub(super) fn boxes_meet(a: (V3, V3), b: (V3, V3)) -> bool {
+    (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k])
+}
+
 /// The binary tree of the build, before it is collapsed.
 struct Binary {
     lo: V3,
@@ -400,22 +405,35 @@ impl Bvh {
         hi: V3,
         mut test: impl FnMut(usize) -> bool,
     ) -> bool {
-        self.any_below(self.root, lo, hi, &mut test)
-            || self.any_below(self.left_out, lo, hi, &mut test)
+        let meets = |l: V3, h: V3| boxes_meet((l, h), (lo, hi));
+        self.any_below(self.root, &meets, &mut test)
+            || self.any_below(self.left_out, &meets, &mut test)
     }
 
     /// Whether `test` holds for some surface of the tree whose bounding box meets the box
     /// [lo, hi]; the walk stops at the first.
+    #[cfg(test)]
     pub(super) fn any_in_box(&self, lo: V3, hi: V3, test: impl FnMut(usize) -> bool) -> bool {
-        self.any_below(self.root, lo, hi, test)
+        self.any_below(self.root, &|l, h| boxes_meet((l, h), (lo, hi)), test)
     }
 
-    /// [`Bvh::any_in_box`] from `root`.
+    /// Whether `test` holds for some surface of the tree whose bounding box `region` may
+    /// meet (`region` answers for a box [lo, hi], and must answer yes for every box that
+    /// holds a box it answers yes for: a node's box holds its children's); the walk stops at
+    /// the first.
+    pub(super) fn any_in_region(
+        &self,
+        region: &impl Fn(V3, V3) -> bool,
+        test: impl FnMut(usize) -> bool,
+    ) -> bool {
+        self.any_below(self.root, region, test)
+    }
+
+    /// [`Bvh::any_in_region`] from `root`.
     fn any_below(
         &self,
         root: Option<u32>,
-        lo: V3,
-        hi: V3,
+        region: &impl Fn(V3, V3) -> bool,
         mut test: impl FnMut(usize) -> bool,
     ) -> bool {
         let Some(root) = root else {
@@ -428,8 +446,7 @@ impl Bvh {
                 for leaf in packets(self, r) {
                     for &id in leaf.id.iter().filter(|&&id| id != u32::MAX) {
                         let (l, h) = self.bounds(id);
-                        let meets = (0..3).all(|a| l[a] <= hi[a] && lo[a] <= h[a]);
-                        if meets && test(id as usize) {
+                        if region(l, h) && test(id as usize) {
                             return true;
                         }
                     }
@@ -438,8 +455,9 @@ impl Bvh {
             }
             let node = &self.nodes[r as usize];
             for k in 0..node.count as usize {
-                let meets = (0..3).all(|a| node.lo[a].0[k] <= hi[a] && lo[a] <= node.hi[a].0[k]);
-                if meets {
+                let l = [node.lo[0].0[k], node.lo[1].0[k], node.lo[2].0[k]];
+                let h = [node.hi[0].0[k], node.hi[1].0[k], node.hi[2].0[k]];
+                if region(l, h) {
                     stack.push(node.child[k]);
                 }
             }
