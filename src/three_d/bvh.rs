@@ -394,7 +394,8 @@ impl Bvh {
         me as u32
     }
 
-    /// [`Bvh::any_in_box`] over every surface of the scene, the tree's and those it leaves out
+    /// Whether `test` holds for some surface whose bounding box meets the box [lo, hi], over
+    /// every surface of the scene, the tree's and those it leaves out
     /// ([`Bvh::occluders`], in a second tree over the same surfaces' copy), so that the
     /// occluders' tree also answers the box queries that need them all (what stands or lies
     /// on what, [`crate::three_d::cover`]; which surfaces touch) without a second hierarchy
@@ -418,9 +419,9 @@ impl Bvh {
     }
 
     /// Whether `test` holds for some surface of the tree whose bounding box `region` may
-    /// meet (`region` answers for a box [lo, hi], and must answer yes for every box that
-    /// holds a box it answers yes for: a node's box holds its children's); the walk stops at
-    /// the first.
+    /// meet; the walk stops at the first. `region` answers for a box [lo, hi] (a node's, then
+    /// its children's, and a surface's) and must answer yes for every box that holds a
+    /// point of the region; it may keep state between calls (tighten as the walk goes on).
     pub(super) fn any_in_region(
         &self,
         region: &impl Fn(V3, V3) -> bool,
@@ -508,8 +509,8 @@ impl Bvh {
 }
 
 /// A few surfaces taken out of the tree in packets of four: those that may come between two
-/// pieces (the candidate list of shaft culling, Haines and Wallace 1991, here the surfaces in
-/// the pieces' bounding box). A ray between the pieces then tests each packet instead of
+/// pieces (the candidate list of shaft culling, Haines and Wallace 1991, here the surfaces
+/// whose boxes may meet the pieces' hull). A ray between the pieces then tests each packet instead of
 /// walking the tree from its root.
 #[derive(Debug, Clone)]
 pub(crate) struct Shaft(SmallVec<[Leaf; 8]>);

@@ -85,9 +85,9 @@ impl Geometry {
     }
 
     /// What may come between pieces `a` and `b`, for their rays ([`visibility::occluders`]):
-    /// nothing when no surface of the occluders' tree in the box of the two pieces meets the
-    /// hull of the pieces by the quick test and that of their whole surfaces by the thorough
-    /// one, else the surfaces in that box when they are few, or the whole tree.
+    /// nothing when no surface of the occluders' tree that may meet the hull of the two pieces
+    /// (by its box) meets it by the quick test and that of their whole surfaces by the
+    /// thorough one, else those surfaces when they are few, or the whole tree.
     pub(super) fn occluders(&self, a: Piece, b: Piece) -> visibility::Occluders<'_> {
         visibility::occluders(&self.bvh, &self.hulls, a, b)
     }

@@ -139,7 +139,7 @@ impl<'b> Occluders<'b> {
 
     /// Whether some surface other than `skip` crosses the open segment (x, y) between the
     /// pieces: the listed surfaces alone when there is a list, which holds every surface
-    /// whose box meets the pieces' box, and so every one that may cross the segment.
+    /// whose box may meet the pieces' hull, and so every one that may cross the segment.
     fn occluded(&self, x: V3, y: V3, skip: [usize; 2]) -> bool {
         match &self.few {
             Some(shaft) => self.bvh.occluded_among(shaft, x, y, skip),
@@ -259,6 +259,9 @@ impl<'p> Hull<'p> {
         // holds an edge of one and a corner of the other, with every point on one side; a
         // plane through points nearly in one line is left out (the hull is then only less
         // tight)
+        // (measured from the first corner, so that the offsets' rounding is the pair's
+        // size's, not that of its distance from the scene's origin)
+        let o = points[0];
         let mut faces: smallvec::SmallVec<[(V3, f64); 24]> = smallvec::SmallVec::new();
         let min_area = 1e-6 * dot(d, d);
         let (a, b) = points.split_at(4);
@@ -274,18 +277,22 @@ impl<'p> Hull<'p> {
         for [p, q, r] in candidates {
             let n = cross(sub(q, p), sub(r, p));
             let len = norm(n);
-            if len <= min_area {
+            // (a normal that overflowed is no face either)
+            if len.is_nan() || len <= min_area || len.is_infinite() {
                 continue;
             }
             let n = scale(n, 1.0 / len);
-            let c = dot(n, p);
+            let c = dot(n, sub(p, o));
             let (mut below, mut above) = (f64::INFINITY, f64::NEG_INFINITY);
             for x in points {
-                let d = dot(n, *x) - c;
+                let d = dot(n, sub(*x, o)) - c;
                 below = below.min(d);
                 above = above.max(d);
             }
-            for (n, c, out) in [(n, c + pad, above), (scale(n, -1.0), pad - c, -below)] {
+            // a face with every corner at most `pad` outside it, moved out to `pad` beyond the
+            // farthest corner
+            for (n, c, out) in [(n, c, above), (scale(n, -1.0), -c, -below)] {
+                let c = c + out.max(0.0) + pad;
                 let known = faces
                     .iter()
                     .any(|(m, e)| dot(*m, n) > 1.0 - 1e-12 && (e - c).abs() <= pad);
@@ -311,10 +318,11 @@ impl<'p> Hull<'p> {
             .get_or_init(|| self.faces())
             .iter()
             .all(|(n, c)| {
+                let o = self.points[0];
                 let nearest: f64 = (0..3)
-                    .map(|a| n[a] * if n[a] > 0.0 { l[a] } else { h[a] })
+                    .map(|a| n[a] * (if n[a] > 0.0 { l[a] } else { h[a] } - o[a]))
                     .sum();
-                nearest <= *c
+                nearest <= *c || nearest.is_nan()
             })
     }
 }
@@ -360,7 +368,7 @@ impl HullMemo {
     }
 }
 
-/// The most surfaces in a pair's box that [`occluders`] tests; beyond them it answers that
+/// The most surfaces that [`occluders`] tests of those its walk of the pair's hull reaches; beyond them it answers that
 /// something may occlude, and the rays walk the tree. In a scene of many small surfaces a box may
 /// hold thousands, and a ray through the tree costs less than the tests of a few dozen.
 const HULL_TEST_BUDGET: usize = 256;
@@ -822,7 +830,12 @@ mod tests {
         let (mut inside, mut outside) = (0, 0);
         for _ in 0..2000 {
             let x = [3.0 * rng.next_f64(), rng.next_f64(), rng.next_f64()];
-            let within = x[0] >= 2.0 * x[2] - 1e-9 && x[0] <= 2.0 * x[2] + 1.0 + 1e-9;
+            // (points within 1e-6 of a slanted face are left to the faces' widening)
+            let (left, right) = (x[0] - 2.0 * x[2], 2.0 * x[2] + 1.0 - x[0]);
+            if left.abs() < 1e-6 || right.abs() < 1e-6 {
+                continue;
+            }
+            let within = left > 0.0 && right > 0.0;
             assert_eq!(point(x), within, "{x:?}");
             if within {
                 inside += 1;
@@ -830,16 +843,20 @@ mod tests {
                 outside += 1;
             }
         }
-        assert!(inside > 400 && outside > 800, "{inside} inside, {outside} outside");
+        assert!(
+            inside > 400 && outside > 800,
+            "{inside} inside, {outside} outside"
+        );
+        // a box across a slanted face is kept (its nearest corner is inside), one beyond it
+        // is not
+        assert!(hull.may_meet([1.9, 0.2, 0.5], [2.5, 0.8, 0.5]));
+        assert!(!hull.may_meet([2.1, 0.2, 0.5], [2.5, 0.8, 0.5]));
         // a triangle's corners repeat its last: the same faces hold
-        let mut tri = Parallelogram::new(&[
-            [2.0, 0.0, 1.0],
-            [2.0, 1.0, 1.0],
-            [3.0, 1.0, 1.0],
-            [3.0, 0.0, 1.0],
-        ]);
-        tri.tri = true;
-        let quads = [quads[0], tri];
+        let tri = Parallelogram {
+            tri: true,
+            ..ceiling
+        };
+        let quads = [floor, tri];
         let pts = corners_of_pair(&quads, Piece::whole(0), Piece::whole(1));
         let hull = Hull::of(&pts);
         hull.met.set(Hull::BOXES_BEFORE_FACES);
