@@ -510,8 +510,8 @@ impl Bvh {
 
 /// A few surfaces taken out of the tree in packets of four: those that may come between two
 /// pieces (the candidate list of shaft culling, Haines and Wallace 1991, here the surfaces
-/// whose boxes may meet the pieces' hull). A ray between the pieces then tests each packet instead of
-/// walking the tree from its root.
+/// whose boxes may meet the pieces' hull). A ray between the pieces then tests each packet
+/// instead of walking the tree from its root.
 #[derive(Debug, Clone)]
 pub(crate) struct Shaft(SmallVec<[Leaf; 8]>);
 

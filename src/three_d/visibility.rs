@@ -206,8 +206,9 @@ pub(super) fn occluders<'b>(bvh: &'b Bvh, memo: &HullMemo, a: Piece, b: Piece) -
 }
 
 /// The convex hull of two pieces' corners, which holds every segment between them: its
-/// bounding box and its faces, each as a half-space n · x ≤ c (n of unit length), all a
-/// little widened. A box wholly outside one of them holds nothing that can stop a ray of the
+/// bounding box and its faces, each as a half-space n · (x − p₀) ≤ c (n of unit length, p₀
+/// the first corner, so that the offsets' rounding is the pair's size's, not that of its
+/// distance from the scene's origin), all a little widened. A box wholly outside one of them holds nothing that can stop a ray of the
 /// pair: the walks of [`occluders`] leave it out, and with it a whole subtree of the BVH
 /// (shaft culling, Haines and Wallace 1991, with the hull's own faces for the shaft's
 /// planes). A pair's box alone held a third of a meshed room's triangles when the pieces
@@ -257,10 +258,8 @@ impl<'p> Hull<'p> {
         let d = sub(self.hi, self.lo);
         // a face of the hull of two flat convex pieces is the plane of one of them, or
         // holds an edge of one and a corner of the other, with every point on one side; a
-        // plane through points nearly in one line is left out (the hull is then only less
-        // tight)
-        // (measured from the first corner, so that the offsets' rounding is the pair's
-        // size's, not that of its distance from the scene's origin)
+        // plane through points nearly in one line, or whose normal overflowed, is left out
+        // (the hull is then only less tight)
         let o = points[0];
         let mut faces: smallvec::SmallVec<[(V3, f64); 24]> = smallvec::SmallVec::new();
         let min_area = 1e-6 * dot(d, d);
@@ -277,8 +276,7 @@ impl<'p> Hull<'p> {
         for [p, q, r] in candidates {
             let n = cross(sub(q, p), sub(r, p));
             let len = norm(n);
-            // (a normal that overflowed is no face either)
-            if len.is_nan() || len <= min_area || len.is_infinite() {
+            if !len.is_finite() || len <= min_area {
                 continue;
             }
             let n = scale(n, 1.0 / len);
@@ -314,11 +312,11 @@ impl<'p> Hull<'p> {
             self.met.set(self.met.get() + 1);
             return true;
         }
+        let o = self.points[0];
         self.faces
             .get_or_init(|| self.faces())
             .iter()
             .all(|(n, c)| {
-                let o = self.points[0];
                 let nearest: f64 = (0..3)
                     .map(|a| n[a] * (if n[a] > 0.0 { l[a] } else { h[a] } - o[a]))
                     .sum();
@@ -368,9 +366,10 @@ impl HullMemo {
     }
 }
 
-/// The most surfaces that [`occluders`] tests of those its walk of the pair's hull reaches; beyond them it answers that
-/// something may occlude, and the rays walk the tree. In a scene of many small surfaces a box may
-/// hold thousands, and a ray through the tree costs less than the tests of a few dozen.
+/// The most surfaces that [`occluders`] tests of those its walk of the pair's hull reaches;
+/// beyond them it answers that something may occlude, and the rays walk the tree. In a scene
+/// of many small surfaces a hull may reach thousands, and a ray through the tree costs less
+/// than the tests of a few dozen.
 const HULL_TEST_BUDGET: usize = 256;
 
 /// SplitMix64: the seeded generator of the jitter.
