@@ -248,7 +248,8 @@ impl Bvh {
         &self.quads
     }
 
-    fn bounds(&self, i: u32) -> (V3, V3) {
+    /// The bounding box of surface `i`.
+    pub(super) fn bounds(&self, i: u32) -> (V3, V3) {
         let q = &self.quads[i as usize];
         let mut lo = q.p0;
         let mut hi = q.p0;

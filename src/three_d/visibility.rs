@@ -154,7 +154,10 @@ impl<'b> Occluders<'b> {
 /// their whole surfaces' hull: the pair is clear. Else every surface the walk reaches, with
 /// no test of its own (the tests cost more than the rays they would spare: testing each
 /// surface of the box made the room with 7 × 7 boxes 23 % slower), or the whole tree when
-/// the walk reaches more than [`SHAFT_SURFACES`].
+/// the walk reaches more than [`SHAFT_SURFACES`]. One walk finds both (a second walk for the
+/// list, once the first had found an occluder, repeated most of it; with the faces' quicker
+/// rejection in [`Hull`] the Cornell box refined 5 % faster and the room with 7 × 7 boxes
+/// 8 %, the same links and results to the bit).
 pub(super) fn occluders<'b>(bvh: &'b Bvh, memo: &HullMemo, a: Piece, b: Piece) -> Occluders<'b> {
     let quads = bvh.quads();
     let pts = corners_of_pair(quads, a, b);
@@ -173,35 +176,40 @@ pub(super) fn occluders<'b>(bvh: &'b Bvh, memo: &HullMemo, a: Piece, b: Piece) -
     };
     let hull = Hull::of(&pts);
     let region = |l: V3, h: V3| hull.may_meet(l, h);
-    let mut looked = 0;
-    let occluded = bvh.any_in_region(&region, |k| {
-        looked += 1;
-        looked > HULL_TEST_BUDGET
-            || (k != a.surface
-                && k != b.surface
-                && may_occlude(&pts, false, &quads[k])
-                && thorough(k))
-    });
-    if !occluded {
-        return Occluders {
-            bvh,
-            few: Some(bvh.shaft(&[])),
-        };
-    }
+    // one walk lists the surfaces, and tests them until one may occlude
     let mut few: smallvec::SmallVec<[u32; SHAFT_SURFACES]> = smallvec::SmallVec::new();
-    let many = bvh.any_in_region(&region, |k| {
+    let (mut many, mut occluding, mut looked) = (false, false, 0);
+    bvh.any_in_region(&region, |k| {
         if k == a.surface || k == b.surface {
             return false;
         }
         if few.len() == SHAFT_SURFACES {
-            return true;
+            many = true;
+        } else {
+            few.push(k as u32);
         }
-        few.push(k as u32);
-        false
+        if !occluding {
+            looked += 1;
+            occluding =
+                looked > HULL_TEST_BUDGET || (may_occlude(&pts, false, &quads[k]) && thorough(k));
+        }
+        occluding && many
     });
+    // the surfaces listed before the faces were found, tested by them now (a list that
+    // they empty leaves the pair clear)
+    if occluding && !many && hull.faces.get().is_some() {
+        few.retain(|k| {
+            let (l, h) = bvh.bounds(*k);
+            hull.within_faces(l, h)
+        });
+    }
     Occluders {
         bvh,
-        few: (!many).then(|| bvh.shaft(&few)),
+        few: if !occluding {
+            Some(bvh.shaft(&[]))
+        } else {
+            (!many).then(|| bvh.shaft(&few))
+        },
     }
 }
 
@@ -263,30 +271,28 @@ impl<'p> Hull<'p> {
         let o = points[0];
         let mut faces: smallvec::SmallVec<[(V3, f64); 24]> = smallvec::SmallVec::new();
         let min_area = 1e-6 * dot(d, d);
-        let (a, b) = points.split_at(4);
-        let mut candidates: smallvec::SmallVec<[[V3; 3]; 34]> = smallvec::SmallVec::new();
-        for (p, q) in [(a, b), (b, a)] {
-            candidates.push([p[0], p[1], p[2]]);
-            for i in 0..4 {
-                for &c in q {
-                    candidates.push([p[i], p[(i + 1) % 4], c]);
+        let mut consider = |p: V3, q: V3, r: V3| {
+            let n = cross(sub(q, p), sub(r, p));
+            let l2 = dot(n, n);
+            if !l2.is_finite() || l2 <= min_area * min_area {
+                return;
+            }
+            // the corners' heights over the plane, times |n|: most candidates have corners
+            // more than `pad` out on both sides, which the first few show, with no root
+            // taken (p is a corner, at height 0)
+            let reach = pad * pad * l2;
+            let (mut below, mut above) = (0.0f64, 0.0f64);
+            for x in points {
+                let h = dot(n, sub(*x, p));
+                below = below.min(h);
+                above = above.max(h);
+                if below * below > reach && above * above > reach {
+                    return;
                 }
             }
-        }
-        for [p, q, r] in candidates {
-            let n = cross(sub(q, p), sub(r, p));
-            let len = norm(n);
-            if !len.is_finite() || len <= min_area {
-                continue;
-            }
+            let len = l2.sqrt();
             let n = scale(n, 1.0 / len);
-            let c = dot(n, sub(p, o));
-            let (mut below, mut above) = (f64::INFINITY, f64::NEG_INFINITY);
-            for x in points {
-                let d = dot(n, sub(*x, o)) - c;
-                below = below.min(d);
-                above = above.max(d);
-            }
+            let (c, below, above) = (dot(n, sub(p, o)), below / len, above / len);
             // a face with every corner at most `pad` outside it, moved out to `pad` beyond the
             // farthest corner
             for (n, c, out) in [(n, c, above), (scale(n, -1.0), -c, -below)] {
@@ -296,6 +302,15 @@ impl<'p> Hull<'p> {
                     .any(|(m, e)| dot(*m, n) > 1.0 - 1e-12 && (e - c).abs() <= pad);
                 if out <= pad && !known {
                     faces.push((n, c));
+                }
+            }
+        };
+        let (a, b) = points.split_at(4);
+        for (p, q) in [(a, b), (b, a)] {
+            consider(p[0], p[1], p[2]);
+            for i in 0..4 {
+                for &c in q {
+                    consider(p[i], p[(i + 1) % 4], c);
                 }
             }
         }
@@ -312,6 +327,11 @@ impl<'p> Hull<'p> {
             self.met.set(self.met.get() + 1);
             return true;
         }
+        self.within_faces(l, h)
+    }
+
+    /// Whether no face has all of the box [l, h] outside.
+    fn within_faces(&self, l: V3, h: V3) -> bool {
         let o = self.points[0];
         self.faces
             .get_or_init(|| self.faces())
