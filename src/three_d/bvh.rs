@@ -512,9 +512,11 @@ impl Bvh {
 /// A few surfaces taken out of the tree in packets of four: those that may come between two
 /// pieces (the candidate list of shaft culling, Haines and Wallace 1991, here the surfaces
 /// whose boxes may meet the pieces' hull). A ray between the pieces then tests each packet
-/// instead of walking the tree from its root.
+/// instead of walking the tree from its root. The packets are on the heap: each pair's list is
+/// moved by value, and eight packets held inline (3.5 KB) were copied for every pair judged,
+/// the clear ones too (the Cornell box refined about 5 % faster without the copies).
 #[derive(Debug, Clone)]
-pub(crate) struct Shaft(SmallVec<[Leaf; 8]>);
+pub(crate) struct Shaft(Vec<Leaf>);
 
 impl Shaft {
     /// Whether the shaft holds no surface.
