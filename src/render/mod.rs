@@ -193,13 +193,43 @@ fn surface_range(f: &Field) -> (f64, f64) {
     }
 }
 
-/// B to a display colour: linear scale to `white`, clamped, sRGB-like gamma.
+/// B to a display colour: linear scale to `white`, clamped, sRGB-like gamma: the level
+/// round(255 x^(1/2.2)) of x = B / white.
 fn tone(v: [f64; 3], white: f64) -> Rgb<u8> {
-    let c = |x: f64| {
-        let x = (x / white).clamp(0.0, 1.0);
-        (x.powf(1.0 / 2.2) * 255.0).round() as u8
-    };
+    let c = |x: f64| gamma_level((x / white).clamp(0.0, 1.0));
     Rgb([c(v[0]), c(v[1]), c(v[2])])
+}
+
+/// round(255 x^(1/2.2)) for x in [0, 1], as the count of the levels' lower edges
+/// ((k − ½) / 255)^2.2 at or below x. The count at the start of x's bucket of √x (a level
+/// spans at least 2.4 of the 1024 buckets) is looked up and moved on by the edges in between,
+/// at most one: `powf` and then a binary search over the edges were 7 % and 4 % of the room
+/// with 7 × 7 boxes' whole `wavrad render` (a picture of each of its 252 surfaces).
+fn gamma_level(x: f64) -> u8 {
+    const BUCKETS: usize = 1024;
+    struct Levels {
+        edges: [f64; 255],
+        start: [u8; BUCKETS + 1],
+    }
+    static LEVELS: std::sync::OnceLock<Levels> = std::sync::OnceLock::new();
+    let levels = LEVELS.get_or_init(|| {
+        let edges: [f64; 255] = std::array::from_fn(|k| ((k as f64 + 0.5) / 255.0).powf(2.2));
+        let start = std::array::from_fn(|b| {
+            let y = b as f64 / BUCKETS as f64;
+            edges.partition_point(|&e| e <= y * y) as u8
+        });
+        Levels { edges, start }
+    });
+    let b = ((x.sqrt() * BUCKETS as f64) as usize).min(BUCKETS);
+    let mut k = levels.start[b] as usize;
+    // √x rounded may put x a bucket off near the bucket's edge: both ways are checked
+    while k > 0 && levels.edges[k - 1] > x {
+        k -= 1;
+    }
+    while k < 255 && levels.edges[k] <= x {
+        k += 1;
+    }
+    k as u8
 }
 
 /// PNG bytes of an image (fast deflate, adaptive filter: deterministic for the same pixels).
@@ -248,6 +278,24 @@ mod tests {
         );
         assert!(grey.iter().max() < black.iter().min());
         assert_eq!(tone([0.25, 2.0, -1.0], 1.0).0, [136, 255, 0]);
+    }
+
+    /// The levels of the power itself at 2²⁰ + 1 points of [0, 1], and within one level on the
+    /// levels' edges, where the two roundings may differ.
+    #[test]
+    fn the_gamma_levels_are_those_of_the_power() {
+        let power = |x: f64| (x.powf(1.0 / 2.2) * 255.0).round() as u8;
+        let n = 1 << 20;
+        let wrong: Vec<f64> = (0..=n)
+            .map(|i| i as f64 / n as f64)
+            .filter(|&x| gamma_level(x) != power(x))
+            .collect();
+        assert!(wrong.is_empty(), "{wrong:?}");
+        for k in 0..255 {
+            let edge = ((k as f64 + 0.5) / 255.0).powf(2.2);
+            assert_eq!(gamma_level(edge), k as u8 + 1);
+            assert!(power(edge).abs_diff(k as u8 + 1) <= 1, "{k}");
+        }
     }
 
     #[test]
