@@ -201,9 +201,9 @@ fn tone(v: [f64; 3], white: f64) -> Rgb<u8> {
 }
 
 /// round(255 x^(1/2.2)) for x in [0, 1], as the count of the levels' lower edges
-/// ((k − ½) / 255)^2.2 at or below x. The count at the start of x's bucket of √x (a level
-/// spans at least 2.4 of the 1024 buckets) is looked up and moved on by the edges in between,
-/// at most one: `powf` and then a binary search over the edges were 7 % and 4 % of the room
+/// ((k − ½) / 255)^2.2 at or below x. The count at the start of x's bucket of √x (consecutive
+/// edges lie at least 2.5 of the 1024 buckets apart) is looked up and moved on by the edges in
+/// between, at most one: `powf` and then a binary search over the edges were 7 % and 4 % of the room
 /// with 7 × 7 boxes' whole `wavrad render` (a picture of each of its 252 surfaces).
 fn gamma_level(x: f64) -> u8 {
     const BUCKETS: usize = 1024;
@@ -222,7 +222,7 @@ fn gamma_level(x: f64) -> u8 {
     });
     let b = ((x.sqrt() * BUCKETS as f64) as usize).min(BUCKETS);
     let mut k = levels.start[b] as usize;
-    // √x rounded may put x a bucket off near the bucket's edge: both ways are checked
+    // √x rounded up onto a bucket's start may count an edge just above x: taken back first
     while k > 0 && levels.edges[k - 1] > x {
         k -= 1;
     }

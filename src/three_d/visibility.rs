@@ -149,15 +149,17 @@ impl<'b> Occluders<'b> {
 }
 
 /// The surfaces of `bvh` (other than the pieces' own) that may occlude some ray between
-/// pieces `a` and `b`. None when no surface that the walk of the pieces' [`Hull`] reaches
-/// passes the quick test of [`may_occlude`] on the pieces' hull and the thorough one on
-/// their whole surfaces' hull: the pair is clear. Else every surface the walk reaches, with
-/// no test of its own (the tests cost more than the rays they would spare: testing each
-/// surface of the box made the room with 7 × 7 boxes 23 % slower), or the whole tree when
-/// the walk reaches more than [`SHAFT_SURFACES`]. One walk finds both (a second walk for the
-/// list, once the first had found an occluder, repeated most of it; with the faces' quicker
+/// pieces `a` and `b`. An empty list when no surface that the walk of the pieces' [`Hull`]
+/// reaches passes the quick test of [`may_occlude`] on the pieces' hull and the thorough one
+/// on their whole surfaces' hull, or when the hull's faces leave none of those it reached:
+/// the pair is clear. Else every surface the walk reaches that the faces keep, with no test
+/// of its own (the tests cost more than the rays they would spare: testing each surface of
+/// the box made the room with 7 × 7 boxes 23 % slower), or the whole tree when the walk
+/// reaches more than [`SHAFT_SURFACES`]. One walk finds both (a second walk for the list,
+/// once the first had found an occluder, repeated most of it; with the faces' quicker
 /// rejection in [`Hull`] the Cornell box refined 5 % faster and the room with 7 × 7 boxes
-/// 8 %, the same links and results to the bit).
+/// 8 %, with the same links and results to the bit; a few pairs more are found clear, and
+/// the Cornell box casts 4.50 M rays instead of 4.51 M).
 pub(super) fn occluders<'b>(bvh: &'b Bvh, memo: &HullMemo, a: Piece, b: Piece) -> Occluders<'b> {
     let quads = bvh.quads();
     let pts = corners_of_pair(quads, a, b);
@@ -216,10 +218,10 @@ pub(super) fn occluders<'b>(bvh: &'b Bvh, memo: &HullMemo, a: Piece, b: Piece) -
 /// The convex hull of two pieces' corners, which holds every segment between them: its
 /// bounding box and its faces, each as a half-space n · (x − p₀) ≤ c (n of unit length, p₀
 /// the first corner, so that the offsets' rounding is the pair's size's, not that of its
-/// distance from the scene's origin), all a little widened. A box wholly outside one of them holds nothing that can stop a ray of the
-/// pair: the walks of [`occluders`] leave it out, and with it a whole subtree of the BVH
-/// (shaft culling, Haines and Wallace 1991, with the hull's own faces for the shaft's
-/// planes). A pair's box alone held a third of a meshed room's triangles when the pieces
+/// distance from the scene's origin), all a little widened. A box wholly outside one of them
+/// holds nothing that can stop a ray of the pair: the walk of [`occluders`] leaves it out,
+/// and with it a whole subtree of the BVH (shaft culling, Haines and Wallace 1991, with the
+/// hull's own faces for the shaft's planes). A pair's box alone held a third of a meshed room's triangles when the pieces
 /// were far apart on a diagonal, and the hull test of each of them was most of its job.
 ///
 /// The faces cost about as much as the walk of a small scene, so they are found only once
