@@ -201,35 +201,13 @@ fn tone(v: [f64; 3], white: f64) -> Rgb<u8> {
 }
 
 /// round(255 x^(1/2.2)) for x in [0, 1], as the count of the levels' lower edges
-/// ((k − ½) / 255)^2.2 at or below x. The count at the start of x's bucket of √x (consecutive
-/// edges lie at least 2.5 of the 1024 buckets apart) is looked up and moved on by the edges in
-/// between, at most one: `powf` and then a binary search over the edges were 7 % and 4 % of the room
-/// with 7 × 7 boxes' whole `wavrad render` (a picture of each of its 252 surfaces).
+/// ((k − ½) / 255)^2.2 at or below x: `powf` for every channel of every pixel was 7 % of the
+/// room with 7 × 7 boxes' whole `wavrad render` (a picture of each of its 252 surfaces), the
+/// search over the edges 4 %.
 fn gamma_level(x: f64) -> u8 {
-    const BUCKETS: usize = 1024;
-    struct Levels {
-        edges: [f64; 255],
-        start: [u8; BUCKETS + 1],
-    }
-    static LEVELS: std::sync::OnceLock<Levels> = std::sync::OnceLock::new();
-    let levels = LEVELS.get_or_init(|| {
-        let edges: [f64; 255] = std::array::from_fn(|k| ((k as f64 + 0.5) / 255.0).powf(2.2));
-        let start = std::array::from_fn(|b| {
-            let y = b as f64 / BUCKETS as f64;
-            edges.partition_point(|&e| e <= y * y) as u8
-        });
-        Levels { edges, start }
-    });
-    let b = ((x.sqrt() * BUCKETS as f64) as usize).min(BUCKETS);
-    let mut k = levels.start[b] as usize;
-    // √x rounded up onto a bucket's start may count an edge just above x: taken back first
-    while k > 0 && levels.edges[k - 1] > x {
-        k -= 1;
-    }
-    while k < 255 && levels.edges[k] <= x {
-        k += 1;
-    }
-    k as u8
+    static EDGES: std::sync::OnceLock<[f64; 255]> = std::sync::OnceLock::new();
+    let edges = EDGES.get_or_init(|| std::array::from_fn(|k| ((k as f64 + 0.5) / 255.0).powf(2.2)));
+    edges.partition_point(|&e| e <= x) as u8
 }
 
 /// PNG bytes of an image (fast deflate, adaptive filter: deterministic for the same pixels).

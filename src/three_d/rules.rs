@@ -11,16 +11,17 @@
 //! path tracer: each meets its requirement with every rule and misses it without that one
 //! (coarse receivers first, lids, the shadow budget). The rules whose need is not one
 //! scene's accuracy are held by the unit tests of the code that applies them (dim
-//! receivers, partly covered senders, separated clusters). The contact lines' share is shown necessary on one scene only
-//! (`contact_lines_are_necessary`: the small cube turned in the room lit from a corner, its
-//! worst face 0.42 % beyond the noise with it, 1.41 % without). Since coarse receivers are
-//! split first, it changes the Cornell box (cell means 0.34 % from the tracer either way) and
-//! the floor in front of its short block (+6.2 % against +6.4 % on the face lit only by that
-//! floor) by less than the reference's noise; the small cube under the central light needs
-//! it (its worst face 1.68 % beyond the noise of 256² paths a cell with it, 2.40 % without)
-//! but misses the 1 % with it as well. The shadow budget, a budget per receiver for the
-//! partly visible links, does not replace it: the small cube's worst cell is 4.1 % beyond the
-//! noise with the contact lines and 5.2 % without them, with the budget.
+//! receivers, partly covered senders, separated clusters). The contact lines' share is shown
+//! necessary on one scene only (`contact_lines_are_necessary`: the small cube turned in the
+//! room lit from a corner, its worst face 0.42 % beyond the noise with it, 1.41 % without).
+//! Since coarse receivers are split first, it changes the Cornell box (cell means 0.34 % from
+//! the tracer either way) and the floor in front of its short block (+6.2 % against +6.4 % on
+//! the face lit only by that floor) by less than the reference's noise; the small cube under
+//! the central light needs it (its worst face 1.68 % beyond the noise of 256² paths a cell
+//! with it, 2.40 % without) but misses the 1 % with it as well. The shadow budget, a budget
+//! per receiver for the partly visible links, does not replace it: the small cube's worst
+//! cell is 4.1 % beyond the noise with the contact lines and 5.2 % without them, with the
+//! budget.
 //!
 //! Numerical constants that are not rules (the grid of the visible fraction, the quadrature
 //! of a block, the budget of links) stay with the code they size.

@@ -221,8 +221,9 @@ pub(super) fn occluders<'b>(bvh: &'b Bvh, memo: &HullMemo, a: Piece, b: Piece) -
 /// distance from the scene's origin), all a little widened. A box wholly outside one of them
 /// holds nothing that can stop a ray of the pair: the walk of [`occluders`] leaves it out,
 /// and with it a whole subtree of the BVH (shaft culling, Haines and Wallace 1991, with the
-/// hull's own faces for the shaft's planes). A pair's box alone held a third of a meshed room's triangles when the pieces
-/// were far apart on a diagonal, and the hull test of each of them was most of its job.
+/// hull's own faces for the shaft's planes). A pair's box alone held a third of a meshed
+/// room's triangles when the pieces were far apart on a diagonal, and the hull test of each
+/// of them was most of its job.
 ///
 /// The faces cost about as much as the walk of a small scene, so they are found only once
 /// [`Hull::BOXES_BEFORE_FACES`] boxes have met the bounding box: in the Cornell box the faces
