@@ -199,16 +199,21 @@ fn the_shadow_budget_is_necessary() {
 
 /// Contact lines: without them a receiver along the line where a solid stands on it takes
 /// light through links whose rays, drawn from inside it, mostly miss the solid's shadow at its
-/// foot. The gallery's small cube turned by 15° in the room lit from a corner: the surface
-/// means meet the gallery's requirement with the rule (worst 0.42 % beyond four standard
-/// errors of a reference of 128² paths a cell, 0.34 % at 256²) and miss it without (1.41 %,
-/// 1.32 %: a side of the cube, lit mostly by the floor at its foot). Its cells miss 5 % either
-/// way (a face of 0.25 units is one element at the default `min_element_size`, see
-/// `benches/README.md`). The second scene is wanting: the small cube under the central light
-/// is 1.68 % beyond the noise with the rule and 2.40 % without at 256² paths (0.99 % and
-/// 1.71 % at 128²), so it needs the rule but does not meet the requirement with it.
+/// foot. The gallery's small cube under the central light of a 10-unit room (surface means and
+/// cells: worst 0 and 0.27 % beyond four standard errors of a reference of 128² paths a cell
+/// with the rule, 2.92 % and 7.00 % without) and its cube of 0.25 turned by 15° in the room lit
+/// from a corner (surface means: 0.03 % with, 4.35 % without; its cells miss 5 % either way,
+/// each face being one element at the default `min_element_size`, see `benches/README.md`).
+/// The sides of both are lit mostly by the floor at their foot.
 #[test]
 fn contact_lines_are_necessary() {
+    necessary_for_the_gallery(
+        &support::scene_file("gallery/small-object"),
+        128,
+        true,
+        Rules::without_contact_lines(),
+        "a small cube under the light",
+    );
     necessary_for_the_gallery(
         &support::scene_file("gallery/small-cube-corner-light"),
         128,

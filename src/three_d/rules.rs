@@ -9,19 +9,13 @@
 //!
 //! `tests/rules.rs` solves two scenes with a rule turned off (`Rules::without_*`) against the
 //! path tracer: each meets its requirement with every rule and misses it without that one
-//! (coarse receivers first, lids, the shadow budget). The rules whose need is not one
-//! scene's accuracy are held by the unit tests of the code that applies them (dim
-//! receivers, partly covered senders, separated clusters). The contact lines' share is shown
-//! necessary on one scene only (`contact_lines_are_necessary`: the small cube turned in the
-//! room lit from a corner, its worst face 0.42 % beyond the noise with it, 1.41 % without).
-//! Since coarse receivers are split first, it changes the Cornell box (cell means 0.34 % from
-//! the tracer either way) and the floor in front of its short block (+6.2 % against +6.4 % on
-//! the face lit only by that floor) by less than the reference's noise; the small cube under
-//! the central light needs it (its worst face 1.68 % beyond the noise of 256² paths a cell
-//! with it, 2.40 % without) but misses the 1 % with it as well. The shadow budget, a budget
-//! per receiver for the partly visible links, does not replace it: the small cube's worst
-//! cell is 4.1 % beyond the noise with the contact lines and 5.2 % without them, with the
-//! budget.
+//! (coarse receivers first, lids, the shadow budget, contact lines). The rules whose need is
+//! not one scene's accuracy are held by the unit tests of the code that applies them (dim
+//! receivers, partly covered senders, separated clusters). The contact lines are what puts a
+//! small object's sides right (the gallery's small cube: 0 with them, 2.92 % beyond the noise
+//! without); the shadow budget, a budget per receiver for the partly visible links, does not
+//! replace them (the rays of a coarse receiver's links mostly miss the shadow at the foot, and
+//! a link all of whose rays pass is not partly visible).
 //!
 //! Numerical constants that are not rules (the grid of the visible fraction, the quadrature
 //! of a block, the budget of links) stay with the code they size.
@@ -31,13 +25,17 @@
 pub struct Rules {
     /// **Contact lines**: the share of the tolerance for a receiver along a line where another
     /// surface stands on its surface, when something may come between it and the source; the
-    /// pair is judged before any ray, and split on the receiver's side unless the receiver is
-    /// the smaller. The error it bounds: next to such a line (a box's foot on a floor) the
+    /// pair is judged before any ray, and split on the receiver's side whatever the two
+    /// pieces' sizes. The error it bounds: next to such a line (a box's foot on a floor) the
     /// standing surface hides up to half of what the receiver sees, and rays drawn from inside
-    /// a coarse receiver mostly miss that shadow. On the Cornell box's floor in front of the
-    /// short block, 1 / 5 / 10 units from its foot, the whole tolerance left B +40 / +24 /
-    /// +16 % bright; half of it, +14 / +3 / −0.4 %, for 65 k → 70 k links (a quarter: +4 /
-    /// −4 / −5 %, 77 k). 1 turns the rule off.
+    /// a coarse receiver mostly miss that shadow. The error is the receiver's, so splitting
+    /// the larger piece when that is the source leaves it where it was: in the gallery's room
+    /// with a small cube, the walls' pieces each passed the share on a 1.25-unit floor element
+    /// and together lit the floor's first 8 cm at the cube's foot 18 % too bright, and the
+    /// cube's sides 1.9 % (0.3 % when the receiver is split). On the Cornell box's floor in
+    /// front of the short block, 1 / 5 / 10 units from its foot, the whole tolerance left B
+    /// +40 / +24 / +16 % bright; half of it, +14 / +3 / −0.4 %, for 65 k → 70 k links (a
+    /// quarter: +4 / −4 / −5 %, 77 k). 1 turns the rule off.
     pub contact_share: f64,
     /// **Dim receivers**: the least share of the tolerance for a receiver whose own B is
     /// below the typical B (the share is their ratio, `three_d::hierarchy`'s `tolerance`).
@@ -127,7 +125,8 @@ impl Rules {
         shadow_share: 1.0,
     };
 
-    /// The default rules without the contact lines' share.
+    /// The default rules without the contact lines (their share 1: a receiver along a contact
+    /// line is judged as any other).
     pub fn without_contact_lines() -> Rules {
         Rules {
             contact_share: 1.0,
