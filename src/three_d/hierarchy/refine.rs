@@ -890,7 +890,7 @@ pub(super) fn peak_emission(quad: &crate::scene::Quad, piece: Piece) -> f64 {
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-    use crate::scene::{parse_value, Limits, SceneKind};
+    use crate::scene::{parse_value, Limits, Quad, SceneKind};
     use crate::three_d::hierarchy::sizing::Sizing;
     use crate::three_d::projection::Geometry;
     use crate::three_d::rules::Rules;
@@ -938,6 +938,34 @@ pub(super) mod tests {
         patches(doc)
     }
 
+    /// The hierarchy of `quads` at order 1 with elements down to half a metre.
+    fn at_half_a_metre<'g>(geo: &'g Geometry, quads: &'g [Quad]) -> Hierarchy<'g> {
+        Hierarchy::new(
+            geo,
+            quads,
+            1,
+            Sizing::new(&geo.quads, Some(0.5), None),
+            1e-3,
+            &Rules::default(),
+        )
+    }
+
+    /// The oracle's estimate for the pair (`r`, `s`), and its error (kernel and detail) as a
+    /// receiver at a contact line: with no smoothness credit.
+    fn contact_error(h: &Hierarchy, r: u32, s: u32) -> ((f64, f64), f64) {
+        let estimate = h.estimate(r, s);
+        let contact = Factors {
+            f: estimate.0 as f32,
+            smooth: 1.0,
+            contact: true,
+            unlit: None,
+            shadow: None,
+        };
+        let (kernel, detail) = h.error(r, s, contact);
+        assert!(kernel > 0.0);
+        (estimate, kernel + detail)
+    }
+
     /// A floor with a wall standing on it (its foot a line at a quarter of the floor) and a
     /// light above both: the floor's root element is at that contact line, and the wall may
     /// come between it and the light, so with an estimate between [`Rules::contact_share`] of the
@@ -947,31 +975,15 @@ pub(super) mod tests {
     fn a_receiver_at_a_contact_line_gets_a_share_of_the_tolerance() {
         let quads = &wall_on_floor_under_light();
         let geo = Geometry::new(quads);
-        let mut h = Hierarchy::new(
-            &geo,
-            quads,
-            1,
-            Sizing::new(&geo.quads, Some(0.5), None),
-            1e-3,
-            &Rules::default(),
-        );
+        let mut h = at_half_a_metre(&geo, quads);
         let (floor, light) = (0u32, 2u32);
         assert!(h.at_contact(floor) && h.splittable(floor));
-        let estimate = h.estimate(floor, light);
-        let contact = Factors {
-            f: estimate.0 as f32,
-            smooth: 1.0,
-            contact: true,
-            unlit: None,
-            shadow: None,
-        };
-        let (kernel, detail) = h.error(floor, light, contact);
-        assert!(kernel > 0.0);
-        h.threshold = (kernel + detail) / (0.5 + 0.5 * h.rules.contact_share);
+        let (estimate, error) = contact_error(&h, floor, light);
+        h.threshold = error / (0.5 + 0.5 * h.rules.contact_share);
         let (verdict, rays) = h.judge(floor, light, estimate);
         assert!(matches!(verdict, Verdict::SplitReceiver), "{verdict:?}");
         assert_eq!(rays, 0);
-        h.threshold = (kernel + detail) / (0.5 * h.rules.contact_share);
+        h.threshold = error / (0.5 * h.rules.contact_share);
         let (verdict, _) = h.judge(floor, light, estimate);
         assert!(
             !matches!(verdict, Verdict::Split { .. } | Verdict::SplitReceiver),
@@ -992,29 +1004,14 @@ pub(super) mod tests {
     fn a_receiver_at_a_contact_line_is_split_even_when_it_is_the_smaller() {
         let quads = &wall_on_floor_under_light();
         let geo = Geometry::new(quads);
-        let mut h = Hierarchy::new(
-            &geo,
-            quads,
-            1,
-            Sizing::new(&geo.quads, Some(0.5), None),
-            1e-3,
-            &Rules::default(),
-        );
+        let mut h = at_half_a_metre(&geo, quads);
         let light = 2u32;
         let first = h.split(0);
         let quarter = first;
         assert!(h.at_contact(quarter) && h.splittable(quarter) && h.splittable(light));
         assert!(h.elements[quarter as usize].area < h.elements[light as usize].area);
-        let estimate = h.estimate(quarter, light);
-        let contact = Factors {
-            f: estimate.0 as f32,
-            smooth: 1.0,
-            contact: true,
-            unlit: None,
-            shadow: None,
-        };
-        let (kernel, detail) = h.error(quarter, light, contact);
-        h.threshold = (kernel + detail) / (0.5 + 0.5 * h.rules.contact_share);
+        let (_, error) = contact_error(&h, quarter, light);
+        h.threshold = error / (0.5 + 0.5 * h.rules.contact_share);
         let (mut out, mut next) = (Vec::new(), Vec::new());
         h.judge_level(
             &[(quarter, light)],
