@@ -138,7 +138,7 @@ fn order_2_is_no_worse_than_order_1() {
 /// turned by 30°. Its sides see mostly the floor at their foot, where the cube hides part of
 /// every wall; before the contact lines' split was made on the receiver whatever the pieces'
 /// sizes, the walls' pieces lit that strip through links of coarse floor elements as if the
-/// cube were not there, and the sides came out 1.4–1.7 % beyond the noise (raw 1.9–2.6 %).
+/// cube were not there, and the sides came out 1.0–1.7 % beyond the noise (raw 1.9–2.6 %).
 #[test]
 fn a_small_object() {
     at_defaults("small-object", 128);
