@@ -665,13 +665,21 @@ impl Hierarchy<'_> {
         for (&(r, s), (verdict, rays)) in pairs.iter().zip(verdicts) {
             self.rays += rays;
             match verdict {
-                Verdict::Split { source } => {
-                    let split_r = self.splittable(r)
-                        && (!self.splittable(s)
-                            || (!source
-                                && (self.coarse(r)
-                                    || self.elements[r as usize].area
-                                        >= self.elements[s as usize].area)));
+                Verdict::Split { .. } | Verdict::SplitReceiver => {
+                    // the contact lines' split is the receiver's whatever the sizes (`judge`
+                    // asks it only of a receiver that can be split); otherwise the larger
+                    // piece, unless the source's own detail is most of the error
+                    let split_r = match verdict {
+                        Verdict::Split { source } => {
+                            self.splittable(r)
+                                && (!self.splittable(s)
+                                    || (!source
+                                        && (self.coarse(r)
+                                            || self.elements[r as usize].area
+                                                >= self.elements[s as usize].area)))
+                        }
+                        _ => true,
+                    };
                     if split_r {
                         let c = self.split(r);
                         next.extend((0..4).map(|i| (c + i, s)));
@@ -679,10 +687,6 @@ impl Hierarchy<'_> {
                         let c = self.split(s);
                         next.extend((0..4).map(|i| (r, c + i)));
                     }
-                }
-                Verdict::SplitReceiver => {
-                    let c = self.split(r);
-                    next.extend((0..4).map(|i| (c + i, s)));
                 }
                 Verdict::Link(x, v) => out.push((r, s, x, v)),
                 Verdict::Hidden(x) => self.hidden.push((r, s, x)),
