@@ -82,7 +82,7 @@ fn document(w: &mut Walker, v: &Value, limits: &Limits) -> Option<Job> {
 }
 
 /// `min_element_size` may not ask for more elements along a surface's side than
-/// `max_resolution` allows (the default, a 64th of the scene's diagonal, never does).
+/// `max_resolution` allows (the default, at least a 256th of the scene's diagonal, never does).
 fn finest_elements(w: &mut Walker, scene: &Scene, solver: &Solver, limits: &Limits) {
     let (SceneKind::ThreeD(quads), Some(size)) = (&scene.kind, solver.min_element_size) else {
         return;

@@ -219,7 +219,9 @@ pub struct Solver {
     #[schema(nullable = false, exclusive_minimum = 0, exclusive_maximum = 1)]
     pub epsilon: Option<f64>,
     /// Hierarchical in 3d only: the smallest element's edge in scene units, the same on every
-    /// surface. Default: the diagonal of the scene's bounding box / 64.
+    /// surface. Default: the diagonal of the scene's bounding box / 64, or the smallest
+    /// parallelogram's shorter side (or half its longer side, when less) if that is smaller,
+    /// but at least the diagonal / 256.
     #[serde(default)]
     #[schema(nullable = false, exclusive_minimum = 0)]
     pub min_element_size: Option<f64>,

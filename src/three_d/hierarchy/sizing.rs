@@ -16,13 +16,20 @@ use crate::three_d::geometry::{bounding_box, norm, sub, Parallelogram};
 /// `resolution`.
 const MAX_LEVEL: u32 = 10;
 
-/// The default smallest element size is the diagonal of the scene's bounding box divided by
-/// this. The Cornell box (diagonal 961) gets 15 units: its 555-unit walls at most 32 × 32, the
-/// resolution its document gives. A 10-unit room with 3 × 3 boxes gets 0.27: its floor at
-/// most 32 × 32, each 1.7-unit box face at most 4 × 4. On that room the surface means at a
-/// 64th, a 128th and a 256th of the diagonal agree within 0.02 % of each other (and within
-/// the path tracer's 0.5 % noise of it), for 564 k, 847 k and 1.33 M links.
+/// The default smallest element size is at most the diagonal of the scene's bounding box
+/// divided by this. The Cornell box (diagonal 961) gets 15 units: its 555-unit walls at most
+/// 32 × 32, the resolution its document gives. A 10-unit room with 3 × 3 boxes gets 0.27: its
+/// floor at most 32 × 32, each 1.7-unit box face at most 4 × 4. On that room the surface means
+/// at a 64th, a 128th and a 256th of the diagonal agree within 0.02 % of each other (and
+/// within the path tracer's 0.5 % noise of it), for 564 k, 847 k and 1.33 M links.
 const DEFAULT_DIVISIONS: f64 = 64.0;
+
+/// The default smallest element size is at least the diagonal divided by this, however small
+/// the scene's smallest face: a sliver does not make the whole scene's refinement unbounded
+/// (its links grow about as 1 / h along the contact lines and shadow edges). A 256th closes
+/// every small object of the gallery (benches/README, "A finer default size"); a document
+/// that needs finer gives `min_element_size`.
+const FINEST_DEFAULT_DIVISIONS: f64 = 256.0;
 
 /// The smallest element edge and, when the document gives it, the finest resolution.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,8 +46,7 @@ impl Sizing {
         resolution: Option<usize>,
     ) -> Sizing {
         Sizing {
-            min_element_size: min_element_size
-                .unwrap_or_else(|| scene_diagonal(quads) / DEFAULT_DIVISIONS),
+            min_element_size: min_element_size.unwrap_or_else(|| default_size(quads)),
             resolution,
         }
     }
@@ -64,6 +70,38 @@ impl Sizing {
             _ => by_size,
         }
     }
+}
+
+/// The default smallest element size: a 64th of the scene's diagonal, or the smallest face's
+/// size when that is smaller, but no less than a 256th of the diagonal.
+///
+/// The refinement bounds each link's error by splitting, and stops at the finest level: below
+/// it, ε bounds nothing. What the finest element must still resolve is set by the geometry,
+/// and its scale is the size of the faces that make it: the shadow and the dip in irradiance
+/// at the foot of a face of height a are about a wide, so a floor element larger than a puts
+/// one plane across them; and a face whose longer side is one element has one plane for its
+/// own variation, however the light falls across it. So a parallelogram's size is its shorter
+/// side, or half its longer side when that is less: a 0.3 cube in a 10-unit room gets 0.15,
+/// a slab 0.15 high 0.15, instead of the room's 0.27 (benches/README: the five small objects
+/// miss the gallery's requirement at a 64th and meet it at this size).
+///
+/// Triangles (lone or of meshes) take no part: a mesh's triangles tessellate an object, and
+/// their sizes are not the object's (a sphere's 1280 triangles, a book's 2 cm edge), so they
+/// would ask the whole scene for the finest triangle's size; their own level is already set
+/// by their longest side.
+fn default_size(quads: &[Parallelogram]) -> f64 {
+    let diagonal = scene_diagonal(quads);
+    let smallest_face = quads
+        .iter()
+        .filter(|q| !q.tri)
+        .map(|q| {
+            let (a, b) = (norm(q.e1), norm(q.e3));
+            a.min(b).min(a.max(b) / 2.0)
+        })
+        .fold(f64::INFINITY, f64::min);
+    (diagonal / DEFAULT_DIVISIONS)
+        .min(smallest_face)
+        .max(diagonal / FINEST_DEFAULT_DIVISIONS)
 }
 
 /// The diagonal of the bounding box of every corner of the scene.
@@ -123,5 +161,53 @@ mod tests {
         let want = 3f64.sqrt() / DEFAULT_DIVISIONS;
         assert!((sizing.min_element_size - want).abs() < 1e-15);
         assert_eq!(Sizing::new(&quads, Some(0.5), None).min_element_size, 0.5);
+    }
+
+    /// A room of 10 with one face of `w` × `l` on its floor.
+    fn room_with_face(w: f64, l: f64) -> Vec<Parallelogram> {
+        let face = Parallelogram::new(&[
+            [4.0, 0.0, 4.0],
+            [4.0 + l, 0.0, 4.0],
+            [4.0 + l, w, 4.0],
+            [4.0, w, 4.0],
+        ]);
+        vec![square(10.0), square_at(10.0, 10.0), face]
+    }
+
+    #[test]
+    fn the_default_resolves_the_smallest_face() {
+        let diagonal = 300f64.sqrt();
+        let size = |w, l| Sizing::new(&room_with_face(w, l), None, None).min_element_size;
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        // a face larger than the room's 64th leaves the default as it was
+        assert_eq!(size(1.0, 1.0), diagonal / DEFAULT_DIVISIONS);
+        // a square of 0.2: half its side, so that it is split at least once
+        assert!(near(size(0.2, 0.2), 0.1));
+        // a side 0.15 × 0.3: its 0.15, and half the 0.3; 0.25 × 0.3: half the 0.3
+        assert!(near(size(0.15, 0.3), 0.15));
+        assert!(near(size(0.25, 0.3), 0.15));
+        // a long thin face: its width; a short wide one too
+        assert!(near(size(0.1, 5.0), 0.1));
+        assert!(near(size(5.0, 0.25), 0.25));
+        // a sliver: no finer than a 256th of the diagonal
+        assert_eq!(size(1e-4, 1.0), diagonal / FINEST_DEFAULT_DIVISIONS);
+        // every one of them along the room's own side: at most 256 elements
+        let finest = Sizing::new(&room_with_face(1e-4, 1.0), None, None);
+        assert_eq!(finest.finest_level(&square(10.0)), 7);
+    }
+
+    #[test]
+    fn triangles_do_not_set_the_default() {
+        let mut quads = room_with_face(1.0, 1.0);
+        let mut tiny = Parallelogram::new(&[
+            [5.0, 5.0, 5.0],
+            [5.001, 5.0, 5.0],
+            [5.001, 5.001, 5.0],
+            [5.0, 5.001, 5.0],
+        ]);
+        tiny.tri = true;
+        quads.push(tiny);
+        let size = Sizing::new(&quads, None, None).min_element_size;
+        assert_eq!(size, 300f64.sqrt() / DEFAULT_DIVISIONS);
     }
 }
