@@ -6,8 +6,12 @@
 //! `benches/README.md` is its output:
 //!
 //! ```text
-//! cargo run --release --example epsilon_table -- [--min-epsilon E] [SCENE...]
+//! cargo run --release --example epsilon_table -- [--min-epsilon E] [--size-with-epsilon] [SCENE...]
 //! ```
+//!
+//! With `--size-with-epsilon`, `min_element_size` shrinks with ε: the scene's default size at
+//! ε = 1e-3, times ε / 1e-3 (halved with each halving of ε), the convergence of the refinement
+//! issue's requirement; without it, the default size at every ε.
 //!
 //! SCENE is a file name under `scenes/` without `.json` (`gallery/room-3x3`); the default is the
 //! Cornell box and every gallery scene. ε runs over 4e-3, 2e-3, … 1.25e-4, down to
@@ -27,9 +31,12 @@ const PER_SIDE: usize = 128;
 fn main() {
     let mut args = std::env::args().skip(1).peekable();
     let mut min_epsilon = 1.25e-4;
+    let mut size_with_epsilon = false;
     let mut names = Vec::new();
     while let Some(a) = args.next() {
-        if a == "--min-epsilon" {
+        if a == "--size-with-epsilon" {
+            size_with_epsilon = true;
+        } else if a == "--min-epsilon" {
             min_epsilon = args
                 .next()
                 .and_then(|v| v.parse().ok())
@@ -64,11 +71,15 @@ fn main() {
         let reference = tracer::reference(&doc, PER_SIDE);
         eprintln!("{name}: reference in {:.0} s", t.elapsed().as_secs_f64());
         let tracer = tracer::Tracer::new(&doc);
+        let default_size = size_with_epsilon.then(|| default_size(&doc));
         let mut epsilon = 4e-3;
         while epsilon >= min_epsilon * 0.99 {
             let mut d = doc.clone();
             d["solver"]["method"] = json!("hierarchical");
             d["solver"]["epsilon"] = json!(epsilon);
+            if let Some(size) = default_size {
+                d["solver"]["min_element_size"] = json!(size * epsilon / 1e-3);
+            }
             let job = parse_value(&d, &Limits::default()).expect("a valid document");
             let t = Instant::now();
             let out = match wavrad::job::run(&job, &Silent) {
@@ -93,6 +104,20 @@ fn main() {
             epsilon /= 2.0;
         }
     }
+}
+
+/// The `min_element_size` the solver chooses for the document: the one its result reports,
+/// from a solve at ε = 4e-3 (the default size does not depend on ε).
+fn default_size(doc: &Value) -> f64 {
+    let mut d = doc.clone();
+    d["solver"]["method"] = json!("hierarchical");
+    d["solver"]["epsilon"] = json!(4e-3);
+    let job = parse_value(&d, &Limits::default()).expect("a valid document");
+    let out = wavrad::job::run(&job, &Silent).expect("solves");
+    let result = serde_json::to_value(&out.result).expect("the result as JSON");
+    result["hierarchical"]["min_element_size"]
+        .as_f64()
+        .expect("the hierarchy's min_element_size")
 }
 
 /// The document with the 4 × 4 grid of the gallery's cell bound.
