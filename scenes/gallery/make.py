@@ -1,10 +1,9 @@
 #!/usr/bin/env python3
 """Writes the gallery of 3D test scenes (rooms with boxes, rotated boxes, a small object, a box
-against a wall, a light in a corner, spheres and boxes as meshes, and small objects placed
-otherwise) as job documents at the solver's defaults (hierarchical, order 1, the default epsilon
-and element size). The tests in tests/gallery.rs solve each (of the small objects of
-small_objects(), the cube in a corner and the cube turned) and compare it with a path-traced
-reference.
+against a wall, a light in a corner, spheres and boxes as meshes, small objects placed
+otherwise, two boxes a narrow gap apart) as job documents at the solver's defaults
+(hierarchical, order 1, the default epsilon and element size). The tests in tests/gallery.rs
+solve each and compare it with a path-traced reference.
 
     python3 scenes/gallery/make.py        # rewrites scenes/gallery/*.json
 """
@@ -150,9 +149,8 @@ def small_object():
 
 def small_objects():
     """Small objects placed otherwise than the gallery's small cube, the scenes of the
-    "Small objects elsewhere in the room" section of benches/README.md. The cube in a corner
-    and the cube turned meet the gallery's requirement at the defaults and are tested; the
-    others do not yet."""
+    "Small objects elsewhere in the room" section of benches/README.md, and two boxes a
+    narrow gap apart. Each is tested at the defaults in tests/gallery.rs."""
     cube = [0.8, 0.3, 0.2]
 
     def tall_room():
@@ -170,7 +168,13 @@ def small_objects():
     beside.append(ceiling_light(4, 4, 6, 6, 5.99, 12.0))
     beside += box("a", 3, 3, 2, 2, 2, 30)
     beside += box("cube", 6, 2, 0.3, 0.3, 0.3, 0, [0.8, 0.8, 0.8])
+    # two boxes side by side, 2 cm apart: each sees the other's side across the gap
+    apart = room(10, 6, 10, left=RED, right=GREEN)
+    apart.append(ceiling_light(4, 4, 6, 6, 5.99, 12.0))
+    apart += box("a", 4.75, 5, 0.5, 0.5, 0.5, 0, [0.8, 0.8, 0.8])
+    apart += box("b", 5.27, 5, 0.5, 0.8, 0.5, 0, [0.2, 0.4, 0.8])
     return {
+        "two-boxes-apart": doc("Two boxes 2 cm apart", apart),
         "small-cube-in-a-corner": doc("A small cube near a corner", in_a_corner),
         "small-cube-turned": doc("A small cube turned by 30 degrees", turned),
         "small-slab": doc("A flat slab in a large room", slab),

@@ -10,7 +10,7 @@
 //! and at most [`MAX_LEVEL`]. When the document also gives `resolution`, ℓ_max is at most
 //! log₂ of it as well.
 
-use crate::three_d::geometry::{bounding_box, norm, sub, Parallelogram};
+use crate::three_d::geometry::{add, bounding_box, dot, norm, scale, sub, Parallelogram, V3};
 
 /// The deepest level of any surface's quadtree: 1024 × 1024 elements, the document's largest
 /// `resolution`.
@@ -73,7 +73,7 @@ impl Sizing {
 }
 
 /// The default smallest element size: a 64th of the scene's diagonal, or the smallest face's
-/// size when that is smaller, but no less than a 256th of the diagonal.
+/// size or the narrowest gap when either is smaller, but no less than a 256th of the diagonal.
 ///
 /// The refinement bounds each link's error by splitting, and stops at the finest level: below
 /// it, ε bounds nothing. What the finest element must still resolve is set by the geometry,
@@ -83,7 +83,11 @@ impl Sizing {
 /// own variation, however the light falls across it. So a parallelogram's size is its shorter
 /// side, or half its longer side when that is less: a 0.3 cube in a 10-unit room gets 0.15,
 /// a slab 0.15 high 0.15, instead of the room's 0.27 (benches/README: the five small objects
-/// miss the gallery's requirement at a 64th and meet it at this size).
+/// miss the gallery's requirement at a 64th and meet it at this size). Likewise the narrowest
+/// gap between two faces that see each other without touching ([`narrowest_gap`]): across a
+/// gap d the kernel 1 / r² varies over d, and each face sees the other's B at that scale (two
+/// boxes 2 cm apart: the one's side in the gap 25 % bright at the room's 0.24, within the
+/// noise at 0.06). Faces that touch are the contact lines' (`refine`), not the size's.
 ///
 /// Triangles (lone or of meshes) take no part: a mesh's triangles tessellate an object, and
 /// their sizes are not the object's (a sphere's 1280 triangles, a book's 2 cm edge), so they
@@ -99,9 +103,120 @@ fn default_size(quads: &[Parallelogram]) -> f64 {
             a.min(b).min(a.max(b) / 2.0)
         })
         .fold(f64::INFINITY, f64::min);
-    (diagonal / DEFAULT_DIVISIONS)
+    let coarsest = diagonal / DEFAULT_DIVISIONS;
+    coarsest
         .min(smallest_face)
+        .min(narrowest_gap(quads, coarsest, diagonal).unwrap_or(f64::INFINITY))
         .max(diagonal / FINEST_DEFAULT_DIVISIONS)
+}
+
+/// The smallest distance below `within` between two parallelograms that see each other (each
+/// has a part in front of the other's plane) and do not touch (farther apart than a 10⁹th of
+/// the scene's `diagonal`): the back-to-back faces of a thin slab do not count, nor a box's
+/// side and the floor it stands on. Pairs are swept along x by their bounding boxes grown by
+/// `within`, so a room of many faces costs about one test per near pair. The distance between
+/// two convex polygons is the least of each corner's to the other and of the edges' to each
+/// other, or zero when an edge crosses the other; written here (a few lines of the geometry
+/// the solver already has) rather than taken from a collision crate for this one query.
+fn narrowest_gap(quads: &[Parallelogram], within: f64, diagonal: f64) -> Option<f64> {
+    let touch = 1e-9 * diagonal;
+    let faces: Vec<(&Parallelogram, V3, V3)> = quads
+        .iter()
+        .filter(|q| !q.tri)
+        .map(|q| {
+            let (lo, hi) = bounding_box(std::slice::from_ref(q));
+            (q, lo, hi)
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..faces.len()).collect();
+    order.sort_by(|&a, &b| faces[a].1[0].total_cmp(&faces[b].1[0]));
+    let mut narrowest: Option<f64> = None;
+    for (k, &a) in order.iter().enumerate() {
+        let (p, plo, phi) = faces[a];
+        for &b in &order[k + 1..] {
+            let (q, qlo, qhi) = faces[b];
+            if qlo[0] > phi[0] + within {
+                break;
+            }
+            let apart = (1..3).any(|i| qlo[i] > phi[i] + within || plo[i] > qhi[i] + within);
+            if apart || !in_front(q, p, touch) || !in_front(p, q, touch) {
+                continue;
+            }
+            let d = polygon_distance(p, q);
+            if d > touch && d < within && narrowest.is_none_or(|n| d < n) {
+                narrowest = Some(d);
+            }
+        }
+    }
+    narrowest
+}
+
+/// Whether some corner of `q` lies in front of `p`'s plane.
+fn in_front(q: &Parallelogram, p: &Parallelogram, touch: f64) -> bool {
+    q.outline().iter().any(|&c| dot(sub(c, p.p0), p.n) > touch)
+}
+
+/// The distance between two parallelograms.
+fn polygon_distance(p: &Parallelogram, q: &Parallelogram) -> f64 {
+    let (pc, qc) = (p.outline(), q.outline());
+    let edges = |c: [V3; 4]| [0, 1, 2, 3].map(|i| (c[i], c[(i + 1) % 4]));
+    let mut d = f64::INFINITY;
+    for (a, corners) in [(p, qc), (q, pc)] {
+        for c in corners {
+            d = d.min(distance_inside(a, c).unwrap_or(f64::INFINITY));
+        }
+        for (e0, e1) in edges(corners) {
+            if crosses(a, e0, e1) {
+                return 0.0;
+            }
+        }
+    }
+    for (a0, a1) in edges(pc) {
+        for (b0, b1) in edges(qc) {
+            d = d.min(segment_distance(a0, a1, b0, b1));
+        }
+    }
+    d
+}
+
+/// The distance from `x` to the parallelogram `p` when `x` projects inside it.
+fn distance_inside(p: &Parallelogram, x: V3) -> Option<f64> {
+    let r = sub(x, p.p0);
+    let (s, t) = (dot(r, p.u), dot(r, p.v));
+    ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t)).then(|| dot(r, p.n).abs())
+}
+
+/// Whether the segment from `a` to `b` passes through the parallelogram `p`.
+fn crosses(p: &Parallelogram, a: V3, b: V3) -> bool {
+    let (da, db) = (dot(sub(a, p.p0), p.n), dot(sub(b, p.p0), p.n));
+    if da * db >= 0.0 {
+        return false;
+    }
+    let x = add(a, scale(sub(b, a), da / (da - db)));
+    distance_inside(p, x).is_some()
+}
+
+/// The distance between the segments a0a1 and b0b1 (Ericson, "Real-Time Collision Detection",
+/// §5.1.9).
+fn segment_distance(a0: V3, a1: V3, b0: V3, b1: V3) -> f64 {
+    let (d1, d2, r) = (sub(a1, a0), sub(b1, b0), sub(a0, b0));
+    let (a, e, f) = (dot(d1, d1), dot(d2, d2), dot(d2, r));
+    let (b, c) = (dot(d1, d2), dot(d1, r));
+    let denominator = a * e - b * b;
+    let mut s = if denominator > 1e-300 {
+        ((b * f - c * e) / denominator).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let mut t = (b * s + f) / e;
+    if t < 0.0 {
+        t = 0.0;
+        s = (-c / a).clamp(0.0, 1.0);
+    } else if t > 1.0 {
+        t = 1.0;
+        s = ((b - c) / a).clamp(0.0, 1.0);
+    }
+    norm(sub(add(a0, scale(d1, s)), add(b0, scale(d2, t))))
 }
 
 /// The diagonal of the bounding box of every corner of the scene.
@@ -194,6 +309,85 @@ mod tests {
         // every one of them along the room's own side: at most 256 elements
         let finest = Sizing::new(&room_with_face(1e-4, 1.0), None, None);
         assert_eq!(finest.finest_level(&square(10.0)), 7);
+    }
+
+    /// A unit box's face at `x` facing `dir` (±1) along x: its corners at y, z ∈ [0, 1].
+    fn wall(x: f64, dir: f64) -> Parallelogram {
+        let (z0, z1) = if dir > 0.0 { (0.0, 1.0) } else { (1.0, 0.0) };
+        Parallelogram::new(&[[x, 0.0, z0], [x, 1.0, z0], [x, 1.0, z1], [x, 0.0, z1]])
+    }
+
+    #[test]
+    fn the_narrowest_gap_is_between_faces_that_see_each_other() {
+        let diagonal = 10.0;
+        let gap = |quads: &[Parallelogram]| narrowest_gap(quads, 1.0, diagonal);
+        assert!(wall(0.0, 1.0).n[0] > 0.0 && wall(0.0, -1.0).n[0] < 0.0);
+        // two faces 2 cm apart, facing each other
+        let facing = [wall(0.0, 1.0), wall(0.02, -1.0)];
+        assert!((gap(&facing).unwrap() - 0.02).abs() < 1e-12);
+        // back to back (a slab 2 cm thick), facing the same way, or farther than `within`
+        assert_eq!(gap(&[wall(0.0, -1.0), wall(0.02, 1.0)]), None);
+        assert_eq!(gap(&[wall(0.0, 1.0), wall(0.02, 1.0)]), None);
+        assert_eq!(gap(&[wall(0.0, 1.0), wall(1.5, -1.0)]), None);
+        // a box's side on the floor it stands on: they touch
+        let side = wall(0.5, 1.0);
+        assert_eq!(gap(&[square(1.0), side]), None);
+        // the same side lifted 3 cm: the gap is its lower edge's to the floor
+        let lifted = Parallelogram::new(&[
+            [0.5, 0.03, 0.0],
+            [0.5, 1.03, 0.0],
+            [0.5, 1.03, 1.0],
+            [0.5, 0.03, 1.0],
+        ]);
+        let floor_up = Parallelogram::new(&[
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+        ]);
+        assert!(floor_up.n[1] > 0.0);
+        assert!((gap(&[floor_up, lifted]).unwrap() - 0.03).abs() < 1e-12);
+        // a face through another: they touch
+        let through = Parallelogram::new(&[
+            [0.5, -0.5, 0.5],
+            [0.5, 0.5, 0.5],
+            [0.5, 0.5, 0.7],
+            [0.5, -0.5, 0.7],
+        ]);
+        assert_eq!(gap(&[floor_up, through]), None);
+        // edge to edge, the corners of neither over the other
+        let beside = Parallelogram::new(&[
+            [1.05, 0.0, 0.0],
+            [1.05, 0.0, 1.0],
+            [2.05, 0.0, 1.0],
+            [2.05, 0.0, 0.0],
+        ]);
+        let tilted = Parallelogram::new(&[
+            [1.05, 0.0, 0.0],
+            [1.05, 0.0, 1.0],
+            [2.05, 1.0, 1.0],
+            [2.05, 1.0, 0.0],
+        ]);
+        assert_eq!(gap(&[floor_up, beside]), None, "coplanar: neither in front");
+        assert!((gap(&[floor_up, tilted]).unwrap() - 0.05).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_default_resolves_the_narrowest_gap() {
+        // a room of 10 with two boxes' faces 10 cm apart in it: the gap, above a 256th
+        let mut quads = vec![square(10.0), square_at(10.0, 10.0)];
+        let at = |q: Parallelogram, dx: f64| {
+            let c = q.outline().map(|c| [c[0] + dx, c[1], c[2] + 4.0]);
+            Parallelogram::new(&c)
+        };
+        quads.push(at(wall(0.0, 1.0), 4.0));
+        quads.push(at(wall(0.1, -1.0), 4.0));
+        let size = Sizing::new(&quads, None, None).min_element_size;
+        assert!((size - 0.1).abs() < 1e-12, "{size}");
+        // 5 mm apart: a 256th of the diagonal
+        quads[3] = at(wall(0.005, -1.0), 4.0);
+        let size = Sizing::new(&quads, None, None).min_element_size;
+        assert_eq!(size, 300f64.sqrt() / FINEST_DEFAULT_DIVISIONS);
     }
 
     #[test]
