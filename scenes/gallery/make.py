@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Writes the gallery of 3D test scenes (rooms with boxes, rotated boxes, a small object, a box
 against a wall, a light in a corner, spheres and boxes as meshes, small objects placed
-otherwise, two boxes a narrow gap apart) as job documents at the solver's defaults
-(hierarchical, order 1, the default epsilon and element size). The tests in tests/gallery.rs
-solve each and compare it with a path-traced reference.
+otherwise, two boxes a narrow gap apart, everyday shapes) as job documents at the solver's
+defaults (hierarchical, order 1, the default epsilon and element size). The tests in
+tests/gallery.rs solve each (of furniture(), the first five) and compare it with a
+path-traced reference.
 
     python3 scenes/gallery/make.py        # rewrites scenes/gallery/*.json
 """
@@ -210,6 +211,68 @@ def meshes_on_a_floor():
     return doc("Meshes on a floor", surfaces)
 
 
+def closed_box(name, cx, cz, sx, sy, sz, y0, rho=WHITE, angle_deg=0.0):
+    """The box of box() with its bottom, facing down: a box that does not stand on the floor."""
+    a = math.radians(angle_deg)
+    c, s = math.cos(a), math.sin(a)
+
+    def at(u, v):
+        return [cx + c * u - s * v, y0, cz + s * u + c * v]
+
+    hx, hz = sx / 2, sz / 2
+    bottom = quad(f"{name}-bottom", at(-hx, -hz), at(hx, -hz), at(-hx, hz), rho)
+    return box(name, cx, cz, sx, sy, sz, angle_deg, rho, y0) + [bottom]
+
+
+def furniture():
+    """Scenes of everyday shapes, written after the default element size followed the smallest
+    face and the narrowest gap, to try it on scenes it was not made from. The first five meet
+    the gallery's requirement at the defaults and are tested; the last three do not yet
+    (benches/README.md, "Scenes it was not made from")."""
+    wood = [0.6, 0.4, 0.2]
+
+    def tall_room():
+        s = room(10, 10, 10)
+        s.append(ceiling_light(4, 4, 6, 6, 9.99, 10.0))
+        return s
+
+    def low_room():
+        s = room(10, 6, 10, left=RED, right=GREEN)
+        s.append(ceiling_light(4, 4, 6, 6, 5.99, 12.0))
+        return s
+
+    def corner_lit():
+        s = room(8, 4, 6, left=RED, right=GREEN)
+        s.append(ceiling_light(0.3, 0.3, 1.8, 1.8, 3.9, 20.0))
+        return s
+
+    on_a_box = tall_room() + box("base", 5, 5, 2, 1, 2)
+    on_a_box += box("cube", 5.3, 5.2, 0.3, 0.3, 0.3, 20, [0.8, 0.3, 0.2], 1.0)
+    pillar = tall_room() + box("pillar", 3, 6, 0.2, 4, 0.2, 0, [0.3, 0.5, 0.8])
+    partition = corner_lit() + box("partition", 4, 3, 0.05, 3, 4, 0, [0.7, 0.7, 0.7])
+    table = corner_lit() + closed_box("top", 5, 3, 2, 0.05, 1, 0.75, wood)
+    for i, (x, z) in enumerate([(4.1, 2.6), (5.9, 2.6), (4.1, 3.4), (5.9, 3.4)]):
+        table += box(f"leg{i}", x, z, 0.06, 0.75, 0.06, 0, wood)
+    near_wall = room(10, 5, 10)
+    near_wall.append(ceiling_light(0.1, 4, 1.1, 6, 4.99, 15.0))
+    near_wall += box("b", 5, 5, 2, 1.5, 2, 20, [0.3, 0.5, 0.8])
+    stack = tall_room() + box("c1", 5, 5, 1, 1, 1)
+    stack += box("c2", 5, 5, 0.7, 0.7, 0.7, 25, [0.8, 0.3, 0.2], 1.0)
+    stack += box("c3", 5, 5, 0.4, 0.4, 0.4, 50, [0.2, 0.6, 0.3], 1.7)
+    lifted = low_room() + closed_box("lifted", 3, 4, 1, 1, 1, 0.02, [0.3, 0.5, 0.8])
+    shelf = low_room() + closed_box("shelf", 5, 9.7, 1.5, 0.04, 0.4, 2.0, [0.8, 0.8, 0.8])
+    return {
+        "cube-on-a-box": doc("A small cube on a box", on_a_box),
+        "pillar": doc("A thin pillar", pillar),
+        "partition": doc("A thin partition in a room lit from a corner", partition),
+        "table": doc("A table on thin legs", table),
+        "light-near-a-wall": doc("A light 10 cm from a wall", near_wall),
+        "stack": doc("Three cubes stacked, each turned", stack),
+        "lifted-box": doc("A box 2 cm above the floor", lifted),
+        "shelf": doc("A thin shelf 10 cm from a wall", shelf),
+    }
+
+
 def main():
     scenes = {
         "room-3x3": grid_room(3),
@@ -220,6 +283,7 @@ def main():
         "corner-light": corner_light(),
         "meshes-on-a-floor": meshes_on_a_floor(),
         **small_objects(),
+        **furniture(),
     }
     for name, d in scenes.items():
         with open(os.path.join(HERE, f"{name}.json"), "w") as f:

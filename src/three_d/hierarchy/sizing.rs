@@ -82,12 +82,13 @@ impl Sizing {
 /// one plane across them; and a face whose longer side is one element has one plane for its
 /// own variation, however the light falls across it. So a parallelogram's size is its shorter
 /// side, or half its longer side when that is less: a 0.3 cube in a 10-unit room gets 0.15,
-/// a slab 0.15 high 0.15, instead of the room's 0.27 (benches/README: the five small objects
-/// miss the gallery's requirement at a 64th and meet it at this size). Likewise the narrowest
-/// gap between two faces that see each other without touching ([`narrowest_gap`]): across a
-/// gap d the kernel 1 / r² varies over d, and each face sees the other's B at that scale (two
-/// boxes 2 cm apart: the one's side in the gap 25 % bright at the room's 0.24, within the
-/// noise at 0.06). Faces that touch are the contact lines' (`refine`), not the size's.
+/// a slab 0.15 high 0.15, instead of the room's 0.27 (benches/README: three of the gallery's
+/// six small objects miss its requirement at a 64th, and all six meet it at this size).
+/// Likewise the narrowest gap between two faces that see each other without touching
+/// ([`narrowest_gap`]): across a gap d the kernel 1 / r² varies over d, and each face sees the
+/// other's B at that scale (two boxes 2 cm apart: the one's side in the gap 25 % bright at
+/// the room's 0.24, within the noise at 0.06). Faces that touch are the contact lines'
+/// (`refine`), not the size's.
 ///
 /// Triangles (lone or of meshes) take no part: a mesh's triangles tessellate an object, and
 /// their sizes are not the object's (a sphere's 1280 triangles, a book's 2 cm edge), so they
