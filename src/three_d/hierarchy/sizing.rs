@@ -10,7 +10,7 @@
 //! and at most [`MAX_LEVEL`]. When the document also gives `resolution`, ℓ_max is at most
 //! log₂ of it as well.
 
-use crate::three_d::geometry::{add, bounding_box, dot, norm, scale, sub, Parallelogram, V3};
+use crate::three_d::geometry::{bounding_box, dot, norm, quad_quad, sub, Parallelogram, V3};
 
 /// The deepest level of any surface's quadtree: 1024 × 1024 elements, the document's largest
 /// `resolution`.
@@ -115,10 +115,7 @@ fn default_size(quads: &[Parallelogram]) -> f64 {
 /// has a part in front of the other's plane) and do not touch (farther apart than a 10⁹th of
 /// the scene's `diagonal`): the back-to-back faces of a thin slab do not count, nor a box's
 /// side and the floor it stands on. Pairs are swept along x by their bounding boxes grown by
-/// `within`, so a room of many faces costs about one test per near pair. The distance between
-/// two convex polygons is the least of each corner's to the other and of the edges' to each
-/// other, or zero when an edge crosses the other; written here (a few lines of the geometry
-/// the solver already has) rather than taken from a collision crate for this one query.
+/// `within`, so a room of many faces costs about one test per near pair.
 fn narrowest_gap(quads: &[Parallelogram], within: f64, diagonal: f64) -> Option<f64> {
     let touch = 1e-9 * diagonal;
     let faces: Vec<(&Parallelogram, V3, V3)> = quads
@@ -143,7 +140,7 @@ fn narrowest_gap(quads: &[Parallelogram], within: f64, diagonal: f64) -> Option<
             if apart || !in_front(q, p, touch) || !in_front(p, q, touch) {
                 continue;
             }
-            let d = polygon_distance(p, q);
+            let d = quad_quad(&p.outline(), p.n, &q.outline(), q.n);
             if d > touch && d < within && narrowest.is_none_or(|n| d < n) {
                 narrowest = Some(d);
             }
@@ -155,69 +152,6 @@ fn narrowest_gap(quads: &[Parallelogram], within: f64, diagonal: f64) -> Option<
 /// Whether some corner of `q` lies in front of `p`'s plane.
 fn in_front(q: &Parallelogram, p: &Parallelogram, touch: f64) -> bool {
     q.outline().iter().any(|&c| dot(sub(c, p.p0), p.n) > touch)
-}
-
-/// The distance between two parallelograms.
-fn polygon_distance(p: &Parallelogram, q: &Parallelogram) -> f64 {
-    let (pc, qc) = (p.outline(), q.outline());
-    let edges = |c: [V3; 4]| [0, 1, 2, 3].map(|i| (c[i], c[(i + 1) % 4]));
-    let mut d = f64::INFINITY;
-    for (a, corners) in [(p, qc), (q, pc)] {
-        for c in corners {
-            d = d.min(distance_inside(a, c).unwrap_or(f64::INFINITY));
-        }
-        for (e0, e1) in edges(corners) {
-            if crosses(a, e0, e1) {
-                return 0.0;
-            }
-        }
-    }
-    for (a0, a1) in edges(pc) {
-        for (b0, b1) in edges(qc) {
-            d = d.min(segment_distance(a0, a1, b0, b1));
-        }
-    }
-    d
-}
-
-/// The distance from `x` to the parallelogram `p` when `x` projects inside it.
-fn distance_inside(p: &Parallelogram, x: V3) -> Option<f64> {
-    let r = sub(x, p.p0);
-    let (s, t) = (dot(r, p.u), dot(r, p.v));
-    ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t)).then(|| dot(r, p.n).abs())
-}
-
-/// Whether the segment from `a` to `b` passes through the parallelogram `p`.
-fn crosses(p: &Parallelogram, a: V3, b: V3) -> bool {
-    let (da, db) = (dot(sub(a, p.p0), p.n), dot(sub(b, p.p0), p.n));
-    if da * db >= 0.0 {
-        return false;
-    }
-    let x = add(a, scale(sub(b, a), da / (da - db)));
-    distance_inside(p, x).is_some()
-}
-
-/// The distance between the segments a0a1 and b0b1 (Ericson, "Real-Time Collision Detection",
-/// §5.1.9).
-fn segment_distance(a0: V3, a1: V3, b0: V3, b1: V3) -> f64 {
-    let (d1, d2, r) = (sub(a1, a0), sub(b1, b0), sub(a0, b0));
-    let (a, e, f) = (dot(d1, d1), dot(d2, d2), dot(d2, r));
-    let (b, c) = (dot(d1, d2), dot(d1, r));
-    let denominator = a * e - b * b;
-    let mut s = if denominator > 1e-300 {
-        ((b * f - c * e) / denominator).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let mut t = (b * s + f) / e;
-    if t < 0.0 {
-        t = 0.0;
-        s = (-c / a).clamp(0.0, 1.0);
-    } else if t > 1.0 {
-        t = 1.0;
-        s = ((b - c) / a).clamp(0.0, 1.0);
-    }
-    norm(sub(add(a0, scale(d1, s)), add(b0, scale(d2, t))))
 }
 
 /// The diagonal of the bounding box of every corner of the scene.
