@@ -3,7 +3,7 @@
 against a wall, a light in a corner, spheres and boxes as meshes, small objects placed
 otherwise, two boxes a narrow gap apart, everyday shapes) as job documents at the solver's
 defaults (hierarchical, order 1, the default epsilon and element size). The tests in
-tests/gallery.rs solve each (of furniture(), the first five) and compare it with a
+tests/gallery.rs solve each (of furniture(), the first six) and compare it with a
 path-traced reference.
 
     python3 scenes/gallery/make.py        # rewrites scenes/gallery/*.json
@@ -226,8 +226,8 @@ def closed_box(name, cx, cz, sx, sy, sz, y0, rho=WHITE, angle_deg=0.0):
 
 def furniture():
     """Scenes of everyday shapes, written after the default element size followed the smallest
-    face and the narrowest gap, to try it on scenes it was not made from. The first five meet
-    the gallery's requirement at the defaults and are tested; the last three do not yet
+    face and the narrowest gap, to try it on scenes it was not made from. The first six meet
+    the gallery's requirement at the defaults and are tested; the last two do not yet
     (benches/README.md, "Scenes it was not made from")."""
     wood = [0.6, 0.4, 0.2]
 

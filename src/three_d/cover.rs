@@ -42,7 +42,7 @@ use crate::three_d::steps::STEP;
 use rayon::prelude::*;
 
 /// Sub-cells per side of a finest cell that the outline of a covered part crosses.
-const SUB: usize = 16;
+pub(super) const SUB: usize = 16;
 
 /// Relative size below which an eigenvalue of a masked Gram matrix counts as zero.
 const CUTOFF: f64 = 1e-3;
@@ -242,6 +242,29 @@ impl Mask {
                 is_set(bits, j * SUB + i)
             }
         }
+    }
+
+    /// Whether the piece `[s0, s1] × [t0, t1]`, aligned to the grid of sub-cells ([`SUB`] per
+    /// finest cell), is wholly covered (`Some(true)`), wholly exposed (`Some(false)`) or both.
+    pub(super) fn coverage(&self, s: [f64; 2], t: [f64; 2]) -> Option<bool> {
+        let n = (self.res * SUB) as f64;
+        let idx = |x: f64| ((x * n).round() as usize).min(self.res * SUB);
+        let (mut open, mut covered) = (false, false);
+        for j in idx(t[0])..idx(t[1]) {
+            for i in idx(s[0])..idx(s[1]) {
+                let here = match &self.cells[(j / SUB) * self.res + i / SUB] {
+                    Cell::Open => false,
+                    Cell::Covered => true,
+                    Cell::Cut(bits) => is_set(bits, (j % SUB) * SUB + i % SUB),
+                };
+                open |= !here;
+                covered |= here;
+                if open && covered {
+                    return None;
+                }
+            }
+        }
+        Some(covered)
     }
 
     /// Whether every covered point of the piece `[s0, s1] × [t0, t1]` (aligned to the grid)
@@ -895,6 +918,24 @@ mod tests {
         }
         assert_eq!(m.exposure([0.375, 0.5], [0.25, 0.5], 2), Exposure::Covered);
         assert_eq!(m.exposure([0.0, 0.25], [0.0, 0.25], 2), Exposure::Open);
+        // the same pieces' coverage, and down to one sub-cell either side of the outline
+        // (s = 3 / 8 along z, a multiple of the sub-cells)
+        assert_eq!(m.coverage([0.0, 1.0], [0.0, 1.0]), None);
+        assert_eq!(m.coverage([0.375, 0.5], [0.25, 0.5]), Some(true));
+        assert_eq!(m.coverage([0.0, 0.25], [0.0, 0.25]), Some(false));
+        let sub = 1.0 / (m.res * SUB) as f64;
+        assert_eq!(
+            m.coverage([0.375 - sub, 0.375], [0.5, 0.5 + sub]),
+            Some(false)
+        );
+        assert_eq!(
+            m.coverage([0.375, 0.375 + sub], [0.5, 0.5 + sub]),
+            Some(true)
+        );
+        assert_eq!(
+            m.coverage([0.375 - sub, 0.375 + sub], [0.5, 0.5 + sub]),
+            None
+        );
     }
 
     #[test]

@@ -49,7 +49,7 @@ use crate::progress::{Cancelled, Phase, Progress};
 use crate::result::HierarchyStats;
 use crate::scene::{Job, Quad, Rgb, SceneKind};
 use crate::three_d::cluster::{is_cluster, Clusters};
-use crate::three_d::cover::{Exposure, Mask, Partial};
+use crate::three_d::cover::{Exposure, Mask, Partial, SUB};
 use crate::three_d::geometry::Piece;
 use crate::three_d::projection::{piece_emission, Geometry};
 use crate::three_d::rules::Rules;
@@ -692,6 +692,89 @@ impl<'g> Hierarchy<'g> {
             .collect()
     }
 
+    /// The fields of the numbers (surface and cell means): each element's B, and on a
+    /// parallelogram with a covered part, each partly covered leaf split down to the mask's
+    /// sub-cells ([`SUB`] per finest cell, at most [`MAX_REPORTED_LEVEL`] levels in all) into
+    /// pieces that are wholly exposed (the exposed part's polynomial, pushed down exactly) or
+    /// wholly covered (E). The element's own projection onto its polynomials keeps its mean but
+    /// spreads the covered part's E and the exposed part's light over the cells inside it (a
+    /// cube standing on a top not much larger than itself: the covered cells 0.022 for 0). A
+    /// triangle is one cell, whose mean the projection keeps.
+    fn reported_fields(&self) -> Vec<Field> {
+        let reported = |e: &Element| e.reported(&e.b, &e.e);
+        let mut fields = self.fields(reported);
+        for (s, field) in fields.iter_mut().enumerate() {
+            let Some(mask) = self.masks[s].as_ref().filter(|_| !self.geo.quads[s].tri) else {
+                continue;
+            };
+            let level = self.levels[s];
+            let finest = (level + SUB.trailing_zeros()).min(level.max(MAX_REPORTED_LEVEL));
+            let mut leaves = Vec::new();
+            self.collect_reported(s as u32, mask, finest, &mut leaves);
+            *field = Field::from_leaves(2, self.k - 1, 1 << finest, leaves);
+        }
+        fields
+    }
+
+    fn collect_reported(&self, e: u32, mask: &Mask, finest: u32, out: &mut Vec<Leaf>) {
+        let el = &self.elements[e as usize];
+        if !el.is_leaf() {
+            for i in 0..4 {
+                self.collect_reported(el.children + i, mask, finest, out);
+            }
+            return;
+        }
+        let whole = MaskedPiece {
+            s: el.piece.s,
+            t: el.piece.t,
+            area: el.area,
+            exposed: el.b.clone(),
+            covered: el.e.clone(),
+            projected: el.reported(&el.b, &el.e),
+        };
+        match el.exposure {
+            Exposure::Partial(_) => self.split_masked(mask, whole, finest - el.level, out),
+            _ => out.push(whole.leaf(&whole.projected)),
+        }
+    }
+
+    /// Splits a partly covered piece until each part is wholly exposed or wholly covered, or
+    /// `depth` runs out (then the parent's projection, pushed down, as before the split).
+    fn split_masked(&self, mask: &Mask, p: MaskedPiece, depth: u32, out: &mut Vec<Leaf>) {
+        match mask.coverage(p.s, p.t) {
+            Some(false) => return out.push(p.leaf(&p.exposed)),
+            Some(true) => return out.push(p.leaf(&p.covered)),
+            None if depth == 0 => return out.push(p.leaf(&p.projected)),
+            None => {}
+        }
+        let kk = self.k * self.k;
+        for i in 0..4 {
+            let (dt, ds) = (i / 2, i % 2);
+            let half = |r: [f64; 2], d: usize| {
+                let m = 0.5 * (r[0] + r[1]);
+                if d == 0 {
+                    [r[0], m]
+                } else {
+                    [m, r[1]]
+                }
+            };
+            let down = |parent: &[Rgb]| {
+                let mut child = vec![[0.0; 3]; kk];
+                push(self.filters, parent, dt, ds, &mut child);
+                child
+            };
+            let child = MaskedPiece {
+                s: half(p.s, ds),
+                t: half(p.t, dt),
+                area: 0.25 * p.area,
+                exposed: down(&p.exposed),
+                covered: down(&p.covered),
+                projected: down(&p.projected),
+            };
+            self.split_masked(mask, child, depth - 1, out);
+        }
+    }
+
     fn collect_leaves(&self, e: u32, pick: &impl Fn(&Element) -> Vec<Rgb>, out: &mut Vec<Leaf>) {
         let el = &self.elements[e as usize];
         if el.is_leaf() {
@@ -972,7 +1055,7 @@ pub(crate) fn solve(
     timings.insert("solve".into(), solve_ms);
     // the numbers count a covered part as B = E, H = 0; the images show the exposed part's
     // polynomial, up to the outline
-    let fields = h.fields(|e| e.reported(&e.b, &e.e));
+    let fields = h.reported_fields();
     let shown = h.masks.iter().any(Option::is_some).then(|| {
         h.fields(|e| match e.exposure {
             Exposure::Covered => e.e.clone(),
@@ -1056,6 +1139,33 @@ pub(crate) fn solve(
 
 fn ms(t: Instant) -> f64 {
     (t.elapsed().as_secs_f64() * 1e6).round() / 1e3
+}
+
+/// The deepest level of the numbers' fields where a covered part is split off
+/// ([`Hierarchy::reported_fields`]): 1024 × 1024 cells of a surface's (s, t) square.
+const MAX_REPORTED_LEVEL: u32 = 10;
+
+/// A piece of a partly covered leaf with the three polynomials it may report (coefficients
+/// orthonormal in its area): the exposed part's, E, and the leaf's projection of both.
+struct MaskedPiece {
+    s: [f64; 2],
+    t: [f64; 2],
+    area: f64,
+    exposed: Vec<Rgb>,
+    covered: Vec<Rgb>,
+    projected: Vec<Rgb>,
+}
+
+impl MaskedPiece {
+    fn leaf(&self, coeffs: &[Rgb]) -> Leaf {
+        let f = 1.0 / self.area.sqrt();
+        Leaf {
+            s: self.s,
+            t: self.t,
+            coeffs: coeffs.iter().map(|v| v.map(|x| x * f)).collect(),
+            upper: false,
+        }
+    }
 }
 
 /// Interleaves the bits of (s, t): the Z-order index of a cell of a quadtree level.
