@@ -58,7 +58,7 @@ use crate::three_d::visibility::Seen;
 use links::Links;
 use rayon::prelude::*;
 use refine::{Factors, Link};
-use sizing::Sizing;
+use sizing::{Sizing, MAX_LEVEL};
 use std::collections::BTreeMap;
 use std::time::Instant;
 use tree::{pull, push, Element, NONE};
@@ -677,24 +677,26 @@ impl<'g> Hierarchy<'g> {
 
     /// Fields of B, E and H over each surface, from the leaves.
     fn fields(&self, pick: impl Fn(&Element) -> Vec<Rgb>) -> Vec<Field> {
-        let order = self.k - 1;
         (0..self.quads.len())
-            .map(|s| {
-                let res = 1usize << self.levels[s];
-                let mut leaves = Vec::new();
-                self.collect_leaves(s as u32, &pick, &mut leaves);
-                if self.geo.quads[s].tri {
-                    Field::triangle(order, res, leaves)
-                } else {
-                    Field::from_leaves(2, order, res, leaves)
-                }
-            })
+            .map(|s| self.field(s, &pick))
             .collect()
+    }
+
+    /// The field of surface `s` from its leaves.
+    fn field(&self, s: usize, pick: &impl Fn(&Element) -> Vec<Rgb>) -> Field {
+        let (order, res) = (self.k - 1, 1usize << self.levels[s]);
+        let mut leaves = Vec::new();
+        self.collect_leaves(s as u32, pick, &mut leaves);
+        if self.geo.quads[s].tri {
+            Field::triangle(order, res, leaves)
+        } else {
+            Field::from_leaves(2, order, res, leaves)
+        }
     }
 
     /// The fields of the numbers (surface and cell means): each element's B, and on a
     /// parallelogram with a covered part, each partly covered leaf split down to the mask's
-    /// sub-cells ([`SUB`] per finest cell, at most [`MAX_REPORTED_LEVEL`] levels in all) into
+    /// sub-cells ([`SUB`] per finest cell, at most [`MAX_LEVEL`] levels in all) into
     /// pieces that are wholly exposed (the exposed part's polynomial, pushed down exactly) or
     /// wholly covered (E). The element's own projection onto its polynomials keeps its mean but
     /// spreads the covered part's E and the exposed part's light over the cells inside it (a
@@ -702,18 +704,18 @@ impl<'g> Hierarchy<'g> {
     /// triangle is one cell, whose mean the projection keeps.
     fn reported_fields(&self) -> Vec<Field> {
         let reported = |e: &Element| e.reported(&e.b, &e.e);
-        let mut fields = self.fields(reported);
-        for (s, field) in fields.iter_mut().enumerate() {
-            let Some(mask) = self.masks[s].as_ref().filter(|_| !self.geo.quads[s].tri) else {
-                continue;
-            };
-            let level = self.levels[s];
-            let finest = (level + SUB.trailing_zeros()).min(level.max(MAX_REPORTED_LEVEL));
-            let mut leaves = Vec::new();
-            self.collect_reported(s as u32, mask, finest, &mut leaves);
-            *field = Field::from_leaves(2, self.k - 1, 1 << finest, leaves);
-        }
-        fields
+        (0..self.quads.len())
+            .map(|s| {
+                let Some(mask) = self.masks[s].as_ref().filter(|_| !self.geo.quads[s].tri) else {
+                    return self.field(s, &reported);
+                };
+                let level = self.levels[s];
+                let finest = (level + SUB.trailing_zeros()).min(level.max(MAX_LEVEL));
+                let mut leaves = Vec::new();
+                self.collect_reported(s as u32, mask, finest, &mut leaves);
+                Field::from_leaves(2, self.k - 1, 1 << finest, leaves)
+            })
+            .collect()
     }
 
     fn collect_reported(&self, e: u32, mask: &Mask, finest: u32, out: &mut Vec<Leaf>) {
@@ -732,9 +734,10 @@ impl<'g> Hierarchy<'g> {
             covered: el.e.clone(),
             projected: el.reported(&el.b, &el.e),
         };
-        match el.exposure {
-            Exposure::Partial(_) => self.split_masked(mask, whole, finest - el.level, out),
-            _ => out.push(whole.leaf(&whole.projected)),
+        if let Exposure::Partial(_) = el.exposure {
+            self.split_masked(mask, whole, finest - el.level, out);
+        } else {
+            out.push(whole.leaf(&whole.projected));
         }
     }
 
@@ -1140,10 +1143,6 @@ pub(crate) fn solve(
 fn ms(t: Instant) -> f64 {
     (t.elapsed().as_secs_f64() * 1e6).round() / 1e3
 }
-
-/// The deepest level of the numbers' fields where a covered part is split off
-/// ([`Hierarchy::reported_fields`]): 1024 × 1024 cells of a surface's (s, t) square.
-const MAX_REPORTED_LEVEL: u32 = 10;
 
 /// A piece of a partly covered leaf with the three polynomials it may report (coefficients
 /// orthonormal in its area): the exposed part's, E, and the leaf's projection of both.

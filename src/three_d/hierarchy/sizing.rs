@@ -13,8 +13,9 @@
 use crate::three_d::geometry::{bounding_box, dot, norm, quad_quad, sub, Parallelogram, V3};
 
 /// The deepest level of any surface's quadtree: 1024 × 1024 elements, the document's largest
-/// `resolution`.
-const MAX_LEVEL: u32 = 10;
+/// `resolution`; also the deepest that the numbers split a covered part off to
+/// (`Hierarchy::reported_fields`).
+pub(super) const MAX_LEVEL: u32 = 10;
 
 /// The default smallest element size is at most the diagonal of the scene's bounding box
 /// divided by this. The Cornell box (diagonal 961) gets 15 units: its 555-unit walls at most
