@@ -211,6 +211,13 @@ fn a_light_near_a_wall() {
     at_defaults("light-near-a-wall", 128);
 }
 
+/// A shelf 4 cm thick, 10 cm from a side wall, lit from a corner: the wall behind it and its
+/// side toward the wall need the near occluders' rule (`tests/rules.rs`).
+#[test]
+fn a_shelf_near_a_side_wall() {
+    at_defaults("side-shelf", 128);
+}
+
 /// Three cubes stacked, each turned: the top cube covers most of the middle cube's top, whose
 /// cells under it were reported as the partly covered elements' projections (0.021 where the
 /// tracer has 0.0069, 214 % beyond the noise) before the numbers took the covered part apart

@@ -92,6 +92,12 @@ impl Geometry {
         visibility::occluders(&self.bvh, &self.hulls, a, b)
     }
 
+    /// Whether something that may come between pieces `a` and `b` lies within `reach` of `a`
+    /// ([`visibility::occluder_near`]).
+    pub(super) fn occluder_near(&self, a: Piece, b: Piece, reach: f64) -> bool {
+        visibility::occluder_near(&self.bvh, a, b, reach)
+    }
+
     /// [`Geometry::visibility`] over the exposed part of `a` only, where `covered` marks a
     /// covered part of its surface ([`crate::three_d::cover`]).
     fn visibility_over(

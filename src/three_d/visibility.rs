@@ -19,7 +19,7 @@
 use crate::three_d::bvh::{Bvh, Shaft};
 use crate::three_d::cover::{Mask, Partial};
 use crate::three_d::geometry::Piece;
-use crate::three_d::geometry::{cross, dot, norm, scale, sub, Parallelogram, V3};
+use crate::three_d::geometry::{cross, dot, norm, quad_quad, scale, sub, Parallelogram, V3};
 use crate::three_d::steps::{quarter_of, tri_cell, Steps, CELLS, STEP};
 
 /// Whether the parallelogram `q` may meet the convex hull of `points` (conservative). With
@@ -213,6 +213,33 @@ pub(super) fn occluders<'b>(bvh: &'b Bvh, memo: &HullMemo, a: Piece, b: Piece) -
             (!many).then(|| bvh.shaft(&few))
         },
     }
+}
+
+/// Whether a surface that may come between pieces `a` and `b` (other than theirs; by the
+/// quick test of [`may_occlude`] on their hull) lies within `reach` of piece `a`: an occluder
+/// that close casts a shadow on `a` about as narrow as its distance, which the rays of a
+/// coarse pair, drawn from inside `a`, can all miss (`three_d::hierarchy::refine`).
+pub(super) fn occluder_near(bvh: &Bvh, a: Piece, b: Piece, reach: f64) -> bool {
+    let quads = bvh.quads();
+    let pts = corners_of_pair(quads, a, b);
+    let ca = a.corners(quads);
+    let na = quads[a.surface].n;
+    let (mut lo, mut hi) = (ca[0], ca[0]);
+    for c in &ca[1..] {
+        for i in 0..3 {
+            lo[i] = lo[i].min(c[i]);
+            hi[i] = hi[i].max(c[i]);
+        }
+    }
+    let lo = lo.map(|x| x - reach);
+    let hi = hi.map(|x| x + reach);
+    let near = |l: V3, h: V3| (0..3).all(|i| l[i] <= hi[i] && h[i] >= lo[i]);
+    bvh.any_in_region(&near, |k| {
+        k != a.surface
+            && k != b.surface
+            && may_occlude(&pts, false, &quads[k])
+            && quad_quad(&ca, na, &quads[k].outline(), quads[k].n) < reach
+    })
 }
 
 /// The convex hull of two pieces' corners, which holds every segment between them: its
@@ -749,6 +776,31 @@ mod tests {
         } else {
             Parallelogram::new(&[c[0], c[3], c[2], c[1]])
         }
+    }
+
+    /// An occluder near the receiver: a board 10 cm above a floor square, between it and a
+    /// ceiling square 4 above, lies within the floor square's diameter; the same board 10 cm
+    /// below the ceiling does not (it is near the source), nor a board 10 cm above the floor
+    /// just beside the square, outside every segment between the two.
+    #[test]
+    fn an_occluder_near_the_receiver_is_found_within_its_reach() {
+        let floor = square(0.0, 0.0, 1.0, true);
+        let ceiling = square(4.0, 0.0, 1.0, false);
+        let reach = 2f64.sqrt();
+        let near = |board: Parallelogram| {
+            let quads = [floor, ceiling, board];
+            let bvh = Bvh::occluders(&quads);
+            occluder_near(&bvh, Piece::whole(0), Piece::whole(1), reach)
+        };
+        assert!(near(square(0.1, 0.4, 0.6, true)));
+        assert!(!near(square(3.9, 0.4, 0.6, true)));
+        let beside = Parallelogram::new(&[
+            [1.1, 0.4, 0.1],
+            [1.3, 0.4, 0.1],
+            [1.3, 0.6, 0.1],
+            [1.1, 0.6, 0.1],
+        ]);
+        assert!(!near(beside));
     }
 
     /// The memo of the thorough hull test answers a triple once from the test and then from

@@ -18,8 +18,9 @@
 //! ([`Rules::contact_share`]), before any ray,
 //! and split on the receiver's side whatever the two pieces' sizes (the error lies on the
 //! receiver; a source split into pieces sends it through their links, each under the share and
-//! all of one sign). A pair none of whose
-//! n rays got through takes 3/n for the factor, the rays' bound on what they missed
+//! all of one sign); so does a receiver that something which may come between it and S lies
+//! near, within its diameter ([`Rules::near_occluders`]), whatever the rays found. A pair none
+//! of whose n rays got through takes 3/n for the factor, the rays' bound on what they missed
 //! ([`crate::three_d::visibility::unseen_bound`]). w_RS = 1 when S emits; for inter-reflected
 //! light it is the inverse of S's share of R's tolerance ([`super::tolerance`]): R gathers
 //! from all its sources and their errors add up with one sign (a coarse link averages a
@@ -504,6 +505,16 @@ impl Hierarchy<'_> {
         let occluders = self.geo.occluders(pr, ps);
         let clear = occluders.clear();
         let contact = self.rules.contact_share < 1.0 && !clear && self.at_contact(r);
+        // and a receiver with an occluder near it, apart from it, gets no smoothness credit
+        // either ([`Rules::near_occluders`]): its shadow may be as narrow as their distance
+        let near = !clear
+            && !contact
+            && self.rules.near_occluders > 0.0
+            && self.geo.occluder_near(
+                pr,
+                ps,
+                self.rules.near_occluders * transfer::diameter(&pr.corners(&self.geo.quads)),
+            );
         if contact && self.splittable(r) {
             let (kernel, detail) = self.error(
                 r,
@@ -556,7 +567,7 @@ impl Hierarchy<'_> {
             f: f as f32,
             smooth: if v.whole <= 0.0 && !contact {
                 unseen_bound(rays) as f32
-            } else if v.whole < 1.0 || contact {
+            } else if v.whole < 1.0 || contact || near {
                 1.0
             } else {
                 smooth as f32
@@ -1187,6 +1198,37 @@ pub(super) mod tests {
             f >= under_centre - 1e-9 && f <= 1.0,
             "F̂ = {f}, under its centre {under_centre}"
         );
+    }
+
+    /// A receiver with an occluder near it that none of the pair's rays meets, a stick 1 cm
+    /// wide 5 cm above the floor under the light, is linked without the smoothness credit
+    /// ([`Rules::near_occluders`]); without the rule, the same rays find the pair clear and
+    /// it takes the credit.
+    #[test]
+    fn a_receiver_with_an_occluder_near_it_gets_no_smoothness_credit() {
+        let quads = &floor_under_light(serde_json::json!({"name": "stick",
+            "corners": [[1.0, 1.0, 0.05], [1.01, 1.0, 0.05], [1.01, 3.0, 0.05], [1.0, 3.0, 0.05]],
+            "reflectance": 0.5}));
+        let geo = Geometry::new(quads);
+        let mut h = at_half_a_metre(&geo, quads);
+        let (floor, light) = (0u32, 2u32);
+        assert!(!h.at_contact(floor));
+        // a tolerance no link misses: the verdict is a link, with the factors it was judged by
+        h.threshold = 1e9;
+        let smooth = |h: &Hierarchy| {
+            let (verdict, _) = h.judge(floor, light, h.estimate(floor, light));
+            let Verdict::Link(x, v) = verdict else {
+                panic!("{verdict:?}")
+            };
+            (x.smooth, v.whole)
+        };
+        let (with, seen) = smooth(&h);
+        assert_eq!(with, 1.0);
+        assert_eq!(seen, 1.0, "the rays found the stick");
+        h.rules = Rules::without_near_occluders();
+        let (without, seen) = smooth(&h);
+        assert_eq!(seen, 1.0);
+        assert!(without < 1.0, "{without}");
     }
 
     /// A pair that none of its rays gets through (a board larger than both between a floor
