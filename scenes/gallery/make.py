@@ -226,9 +226,10 @@ def closed_box(name, cx, cz, sx, sy, sz, y0, rho=WHITE, angle_deg=0.0):
 
 def furniture():
     """Scenes of everyday shapes, written after the default element size followed the smallest
-    face and the narrowest gap, to try it on scenes it was not made from. All but the box
-    above the floor and the shelf meet the gallery's requirement at the defaults and are
-    tested; those two do not yet (benches/README.md, "Scenes it was not made from")."""
+    face and the narrowest gap, to try it on scenes it was not made from (the shelf near a
+    side wall came later, with the near occluders' rule). All but the box above the floor and
+    the shelf meet the gallery's requirement at the defaults and are tested; those two do not
+    yet (benches/README.md, "Scenes it was not made from")."""
     wood = [0.6, 0.4, 0.2]
 
     def tall_room():

@@ -177,6 +177,30 @@ impl Parallelogram {
         (dot(d, self.u), dot(d, self.v))
     }
 
+    /// The point of `piece` (of this patch) at (s, t), moved into the piece to a hundredth of
+    /// its size from its edges: along each side of a parallelogram piece, and in the local
+    /// coordinates (ŝ, t̂) of a triangle piece, toward its first vertex past its diagonal.
+    pub(super) fn at_clamped(&self, piece: &Piece, s: f64, t: f64) -> V3 {
+        if self.tri {
+            let (u, v) = piece.local(s, t);
+            let (u, v) = (u.max(0.01), v.max(0.01));
+            let (u, v) = if u + v > 0.98 {
+                let k = 0.98 / (u + v);
+                (u * k, v * k)
+            } else {
+                (u, v)
+            };
+            let (s, t) = piece.at_local(u, v);
+            return self.at(s, t);
+        }
+        let local =
+            |x: f64, lo: f64, hi: f64| lo + ((x - lo) / (hi - lo)).clamp(0.01, 0.99) * (hi - lo);
+        self.at(
+            local(s, piece.s[0], piece.s[1]),
+            local(t, piece.t[0], piece.t[1]),
+        )
+    }
+
     /// Signed distance of p from the plane, positive in front.
     #[inline(always)]
     pub(super) fn side(&self, p: V3) -> f64 {

@@ -12,15 +12,15 @@
 //! with F̂ the largest point-to-piece form factor from a few points of R to S (in closed
 //! form), d the larger diameter and dist the distance of the two pieces, and D_S the root mean
 //! square of B on S minus its polynomial there (the wavelet detail below S). A partly visible
-//! pair loses the smoothness factor (a shadow edge is not a polynomial), and so does a receiver
+//! pair loses the smoothness factor (a shadow edge is not a polynomial), and so does a pair all
+//! of whose rays got through when something that may come between the two lies near the
+//! receiver, within its diameter ([`Rules::near_occluders`]); and so does a receiver
 //! along a line where another surface stands on its surface, when anything may come between it
 //! and S; such a pair is judged against a share of the tolerance
 //! ([`Rules::contact_share`]), before any ray,
 //! and split on the receiver's side whatever the two pieces' sizes (the error lies on the
 //! receiver; a source split into pieces sends it through their links, each under the share and
-//! all of one sign); so does a receiver that something which may come between it and S lies
-//! near, within its diameter ([`Rules::near_occluders`]), whatever the rays found. A pair none
-//! of whose n rays got through takes 3/n for the factor, the rays' bound on what they missed
+//! all of one sign). A pair none of whose n rays got through takes 3/n for the factor, the rays' bound on what they missed
 //! ([`crate::three_d::visibility::unseen_bound`]). w_RS = 1 when S emits; for inter-reflected
 //! light it is the inverse of S's share of R's tolerance ([`super::tolerance`]): R gathers
 //! from all its sources and their errors add up with one sign (a coarse link averages a
@@ -87,7 +87,8 @@ fn holds(v: [[f64; 2]; 3], s: f64, t: f64) -> bool {
 pub(super) struct Factors {
     /// F̂: the largest point-to-piece form factor from the receiver to the source.
     f: f32,
-    /// (d / (d + dist))^(m+1), or 1 when the pair is partly visible.
+    /// (d / (d + dist))^(m+1); 1 when the pair is partly visible, at a contact line or with an
+    /// occluder near its receiver; 3/n when none of its n rays got through.
     smooth: f32,
     /// Whether the receiver touches a contact line and something may come between it and
     /// the source ([`Rules::contact_share`]).
@@ -177,30 +178,31 @@ impl Hierarchy<'_> {
         // and under the source: its corners and centre projected onto the receiver's plane,
         // clamped into the receiver. A small source close in front of a large receiver (the
         // bottom of a box 2 cm above a floor) peaks at up to 1 under itself, between the grid's
-        // points. Where the source meets the receiver's plane at an angle (a wall standing
+        // points. Where the source reaches the receiver's plane at an angle (a wall standing
         // inside a floor element, its foot perhaps the grid's middle line, in the wall's
-        // plane), the strip in front of its foot sees it with a form factor up to ½: the
+        // plane), the strip in front of its foot sees it with a form factor up to ½: there the
         // points are moved a hundredth of the receiver's size along the source's normal, onto
         // its front side
+        // (a triangle's corners repeat its third)
+        let n = if cb[2] == cb[3] { 3 } else { 4 };
+        let lowest = cb[..n]
+            .iter()
+            .map(|&c| qr.side(c))
+            .fold(f64::INFINITY, f64::min);
         let along = sub(qs.n, scale(qr.n, dot(qs.n, qr.n)));
-        let nudge = if norm(along) > 1e-9 {
+        let reaches = lowest <= 1e-9 * transfer::diameter(&ca);
+        let nudge = if reaches && norm(along) > 1e-9 {
             scale(normalize(along), 0.01 * transfer::diameter(&ca))
         } else {
             [0.0; 3]
         };
-        let local = |x: f64, lo: f64, hi: f64| ((x - lo) / (hi - lo)).clamp(0.01, 0.99);
-        // (a triangle's corners repeat its third)
-        let n = if cb[2] == cb[3] { 3 } else { 4 };
         let centre = scale(
             cb[..n].iter().fold([0.0; 3], |a, &c| add(a, c)),
             1.0 / n as f64,
         );
-        for c in cb.iter().copied().chain([centre]) {
+        for c in cb[..n].iter().copied().chain([centre]) {
             let (cs, ct) = qr.params(add(sub(c, scale(qr.n, qr.side(c))), nudge));
-            let x = qr.at(
-                p.s[0] + local(cs, p.s[0], p.s[1]) * (p.s[1] - p.s[0]),
-                p.t[0] + local(ct, p.t[0], p.t[1]) * (p.t[1] - p.t[0]),
-            );
+            let x = qr.at_clamped(p, cs, ct);
             if qs.side(x) > 0.0 {
                 f = f.max(transfer::point_polygon(x, qr.n, &cb));
             }
@@ -504,17 +506,8 @@ impl Hierarchy<'_> {
         // the walls' light at its foot that way). No rays are needed to decide that
         let occluders = self.geo.occluders(pr, ps);
         let clear = occluders.clear();
-        let contact = self.rules.contact_share < 1.0 && !clear && self.at_contact(r);
-        // and a receiver with an occluder near it, apart from it, gets no smoothness credit
-        // either ([`Rules::near_occluders`]): its shadow may be as narrow as their distance
-        let near = !clear
-            && !contact
-            && self.rules.near_occluders > 0.0
-            && self.geo.occluder_near(
-                pr,
-                ps,
-                self.rules.near_occluders * transfer::diameter(&pr.corners(&self.geo.quads)),
-            );
+        let at_line = !clear && self.at_contact(r);
+        let contact = self.rules.contact_share < 1.0 && at_line;
         if contact && self.splittable(r) {
             let (kernel, detail) = self.error(
                 r,
@@ -560,6 +553,19 @@ impl Hierarchy<'_> {
         } else {
             grid
         };
+        // all rays through, but something that may come between the two lies near the
+        // receiver, apart from any line where it stands on it (the contact lines' error):
+        // no smoothness credit either ([`Rules::near_occluders`]), as its shadow on the
+        // receiver may be as narrow as their distance
+        let near = v.whole >= 1.0
+            && !clear
+            && !at_line
+            && self.rules.near_occluders > 0.0
+            && self.geo.occluder_near(
+                pr,
+                ps,
+                self.rules.near_occluders * transfer::diameter(&pr.corners(&self.geo.quads)),
+            );
         // partly visible: no smoothness credit. Hidden as far as the sampled rays can tell: a
         // big pair's light may pass through a gap none of them found, but no more of it than
         // the rays' bound on what they missed ([`unseen_bound`])
@@ -1200,14 +1206,14 @@ pub(super) mod tests {
         );
     }
 
-    /// A receiver with an occluder near it that none of the pair's rays meets, a stick 1 cm
-    /// wide 5 cm above the floor under the light, is linked without the smoothness credit
-    /// ([`Rules::near_occluders`]); without the rule, the same rays find the pair clear and
-    /// it takes the credit.
+    /// A receiver with an occluder near it that none of the pair's rays meets, a chip 1 mm ×
+    /// 1 cm 5 cm above the floor under the light, is linked without the smoothness credit
+    /// ([`Rules::near_occluders`]); without the rule, the same rays all pass and the pair
+    /// takes the credit.
     #[test]
     fn a_receiver_with_an_occluder_near_it_gets_no_smoothness_credit() {
-        let quads = &floor_under_light(serde_json::json!({"name": "stick",
-            "corners": [[1.0, 1.0, 0.05], [1.01, 1.0, 0.05], [1.01, 3.0, 0.05], [1.0, 3.0, 0.05]],
+        let quads = &floor_under_light(serde_json::json!({"name": "chip",
+            "corners": [[1.0, 1.0, 0.05], [1.001, 1.0, 0.05], [1.001, 1.01, 0.05], [1.0, 1.01, 0.05]],
             "reflectance": 0.5}));
         let geo = Geometry::new(quads);
         let mut h = at_half_a_metre(&geo, quads);
@@ -1224,7 +1230,7 @@ pub(super) mod tests {
         };
         let (with, seen) = smooth(&h);
         assert_eq!(with, 1.0);
-        assert_eq!(seen, 1.0, "the rays found the stick");
+        assert_eq!(seen, 1.0, "the rays found the chip");
         h.rules = Rules::without_near_occluders();
         let (without, seen) = smooth(&h);
         assert_eq!(seen, 1.0);
