@@ -233,7 +233,7 @@ pub(super) fn occluder_near(bvh: &Bvh, a: Piece, b: Piece, reach: f64) -> bool {
     }
     let lo = lo.map(|x| x - reach);
     let hi = hi.map(|x| x + reach);
-    let near = |l: V3, h: V3| (0..3).all(|i| l[i] <= hi[i] && h[i] >= lo[i]);
+    let near = |l: V3, h: V3| crate::three_d::bvh::boxes_meet((l, h), (lo, hi));
     bvh.any_in_region(&near, |k| {
         k != a.surface
             && k != b.surface

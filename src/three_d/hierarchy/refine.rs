@@ -20,12 +20,12 @@
 //! ([`Rules::contact_share`]), before any ray,
 //! and split on the receiver's side whatever the two pieces' sizes (the error lies on the
 //! receiver; a source split into pieces sends it through their links, each under the share and
-//! all of one sign). A pair none of whose n rays got through takes 3/n for the factor, the rays' bound on what they missed
-//! ([`crate::three_d::visibility::unseen_bound`]). w_RS = 1 when S emits; for inter-reflected
-//! light it is the inverse of S's share of R's tolerance ([`super::tolerance`]): R gathers
-//! from all its sources and their errors add up with one sign (a coarse link averages a
-//! source's bright spot over a kernel that peaks at it, so it carries too little: with
-//! w = 1 every surface of the Cornell box came out 1–3 % low). When err is
+//! all of one sign). A pair none of whose n rays got through takes 3/n for the factor, the
+//! rays' bound on what they missed ([`crate::three_d::visibility::unseen_bound`]). w_RS = 1
+//! when S emits; for inter-reflected light it is the inverse of S's share of R's tolerance
+//! ([`super::tolerance`]): R gathers from all its sources and their errors add up with one
+//! sign (a coarse link averages a source's bright spot over a kernel that peaks at it, so it
+//! carries too little: with w = 1 every surface of the Cornell box came out 1–3 % low). When err is
 //! above ε times the brightest emission (less on a dim receiver, [`super::tolerance`]), an
 //! element is split (down to the
 //! finest level allowed: the source when D_S is most of the error, else the larger, except that
@@ -190,9 +190,10 @@ impl Hierarchy<'_> {
             .map(|&c| qr.side(c))
             .fold(f64::INFINITY, f64::min);
         let along = sub(qs.n, scale(qr.n, dot(qs.n, qr.n)));
-        let reaches = lowest <= 1e-9 * transfer::diameter(&ca);
+        let diameter = transfer::diameter(&ca);
+        let reaches = lowest <= 1e-9 * diameter;
         let nudge = if reaches && norm(along) > 1e-9 {
-            scale(normalize(along), 0.01 * transfer::diameter(&ca))
+            scale(normalize(along), 0.01 * diameter)
         } else {
             [0.0; 3]
         };
@@ -207,7 +208,7 @@ impl Hierarchy<'_> {
                 f = f.max(transfer::point_polygon(x, qr.n, &cb));
             }
         }
-        let size = transfer::diameter(&ca).max(transfer::diameter(&cb));
+        let size = diameter.max(transfer::diameter(&cb));
         let dist = quad_quad(&ca, qr.n, &cb, qs.n);
         (f, (size / (size + dist)).powi(self.k as i32))
     }

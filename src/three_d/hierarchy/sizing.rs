@@ -10,7 +10,7 @@
 //! and at most [`MAX_LEVEL`]. When the document also gives `resolution`, ℓ_max is at most
 //! log₂ of it as well.
 
-use crate::three_d::geometry::{bounding_box, dot, norm, quad_quad, sub, Parallelogram, V3};
+use crate::three_d::geometry::{bounding_box, norm, quad_quad, sub, Parallelogram, V3};
 
 /// The deepest level of any surface's quadtree: 1024 × 1024 elements, the document's largest
 /// `resolution`; also the deepest that the numbers split a covered part off to
@@ -152,7 +152,7 @@ fn narrowest_gap(quads: &[Parallelogram], within: f64, diagonal: f64) -> Option<
 
 /// Whether some corner of `q` lies in front of `p`'s plane.
 fn in_front(q: &Parallelogram, p: &Parallelogram, touch: f64) -> bool {
-    q.outline().iter().any(|&c| dot(sub(c, p.p0), p.n) > touch)
+    q.outline().iter().any(|&c| p.side(c) > touch)
 }
 
 /// The diagonal of the bounding box of every corner of the scene.
