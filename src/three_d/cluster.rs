@@ -18,7 +18,9 @@
 //! of the receiver (`Bound::before`), the source's sum is carried by a few moments (the
 //! irradiance's numerator is affine in the receiving point; [`crate::three_d::hierarchy`]'s
 //! `Emitter`, expanded to second order), and the error is third order in the source's size
-//! over the distance; otherwise the source's intensity is taken toward each receiving member
+//! over the distance; a source that is one element sends its mean B through each member's
+//! point-to-polygon form factor instead, in closed form (Baum, Rushmeier and Winget 1989),
+//! exact for that mean whatever the distance; otherwise the source's intensity is taken toward each receiving member
 //! where it is linear in the direction (an element, or a cluster whose members all face the
 //! member or all face away), else toward the receiver's centre,
 //!
