@@ -2167,25 +2167,31 @@ mod tests {
         with_cluster_of(&doc, 8, light_each_face)
     }
 
-    /// The worst relative error of the light that the unit B of `h`'s first surface, a
-    /// square, sends each member of the cluster `octahedron` through one cluster link, against
-    /// the member's form factor to the square; and how many members it lights.
-    fn light_each_face(h: &mut Hierarchy, octahedron: u32) -> (f64, usize) {
-        let floor = &mut h.elements[0];
-        assert_eq!(floor.piece.surface, 0);
-        floor.b.iter_mut().for_each(|b| *b = [0.0; 3]);
-        floor.b[0] = [floor.area.sqrt(); 3];
-        let link = ClusterLink {
-            recv: octahedron,
+    /// A wholly visible link into cluster `recv` from the root element of `h`'s first surface,
+    /// whose B is made a unit constant.
+    fn from_unit_first_surface(h: &mut Hierarchy, recv: u32, affine: bool) -> ClusterLink {
+        let root = &mut h.elements[0];
+        assert_eq!(root.piece.surface, 0);
+        root.b.iter_mut().for_each(|b| *b = [0.0; 3]);
+        root.b[0] = [root.area.sqrt(); 3];
+        ClusterLink {
+            recv,
             src: 0,
             visibility: 1.0,
-            affine: false,
+            affine,
             smooth: 1.0,
             sampled: 0.0,
             members: None,
             factors: None,
             cut: None,
-        };
+        }
+    }
+
+    /// The worst relative error of the light that the unit B of `h`'s first surface, a
+    /// square, sends each member of the cluster `octahedron` through one cluster link, against
+    /// the member's form factor to the square; and how many members it lights.
+    fn light_each_face(h: &mut Hierarchy, octahedron: u32) -> (f64, usize) {
+        let link = from_unit_first_surface(h, octahedron, false);
         let mut out = vec![[0.0; 3]; 8];
         h.cluster_link_irradiance(&link, &h.lights(), &mut out);
         let square = &h.geo.quads[0];
@@ -2244,21 +2250,7 @@ mod tests {
              "reflectance": 0.5}]},
             "solver": {"method": "hierarchical"}});
         with_cluster_of(&doc, 2, |h, chips| {
-            let panel = &mut h.elements[0];
-            assert_eq!(panel.piece.surface, 0);
-            panel.b.iter_mut().for_each(|b| *b = [0.0; 3]);
-            panel.b[0] = [panel.area.sqrt(); 3];
-            let link = ClusterLink {
-                recv: chips,
-                src: 0,
-                visibility: 1.0,
-                affine: true,
-                smooth: 1.0,
-                sampled: 0.0,
-                members: None,
-                factors: None,
-                cut: None,
-            };
+            let link = from_unit_first_surface(h, chips, true);
             let factors = h.unit_irradiance(&link);
             let square = &h.geo.quads[0];
             let expansion = h.element_emitter(0, [1.0; 3]);
