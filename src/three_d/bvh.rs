@@ -16,7 +16,7 @@
 //! processor has them (`pulp` checks at run time), two SSE2 halves (`wide`) elsewhere.
 //! Measured in `benches/three_d.rs` (rays per second, `benches/README.md`).
 
-use crate::three_d::geometry::{dot, sub, Parallelogram, V3};
+use crate::three_d::geometry::{box_of, dot, sub, Parallelogram, V3};
 use rayon::prelude::*;
 use smallvec::SmallVec;
 
@@ -250,16 +250,7 @@ impl Bvh {
 
     /// The bounding box of surface `i`.
     pub(super) fn bounds(&self, i: u32) -> (V3, V3) {
-        let q = &self.quads[i as usize];
-        let mut lo = q.p0;
-        let mut hi = q.p0;
-        for c in q.outline() {
-            for a in 0..3 {
-                lo[a] = lo[a].min(c[a]);
-                hi[a] = hi[a].max(c[a]);
-            }
-        }
-        (lo, hi)
+        box_of(self.quads[i as usize].outline())
     }
 
     /// The binary SAH tree over `surfaces`, whose boxes are `boxes` (by surface); its two
@@ -414,7 +405,6 @@ impl Bvh {
 
     /// Whether `test` holds for some surface of the tree whose bounding box meets the box
     /// [lo, hi]; the walk stops at the first.
-    #[cfg(test)]
     pub(super) fn any_in_box(&self, lo: V3, hi: V3, test: impl FnMut(usize) -> bool) -> bool {
         self.any_below(self.root, &|l, h| boxes_meet((l, h), (lo, hi)), test)
     }

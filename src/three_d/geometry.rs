@@ -36,17 +36,21 @@ pub(crate) fn norm(a: V3) -> f64 {
 
 /// The bounding box (least and greatest corner) of the patches `quads`.
 pub(crate) fn bounding_box(quads: &[Parallelogram]) -> (V3, V3) {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for q in quads {
-        for c in q.outline() {
-            for i in 0..3 {
-                lo[i] = lo[i].min(c[i]);
-                hi[i] = hi[i].max(c[i]);
-            }
-        }
-    }
-    (lo, hi)
+    box_of(quads.iter().flat_map(|q| q.outline()))
+}
+
+/// The smallest axis-aligned box [lo, hi] that holds `points` (lo > hi when there are none).
+#[inline]
+pub(crate) fn box_of(points: impl IntoIterator<Item = V3>) -> (V3, V3) {
+    points.into_iter().fold(
+        ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+        |(lo, hi), p| {
+            (
+                [0, 1, 2].map(|i| lo[i].min(p[i])),
+                [0, 1, 2].map(|i| hi[i].max(p[i])),
+            )
+        },
+    )
 }
 
 pub(crate) fn normalize(a: V3) -> V3 {

@@ -19,7 +19,9 @@
 use crate::three_d::bvh::{Bvh, Shaft};
 use crate::three_d::cover::{Mask, Partial};
 use crate::three_d::geometry::Piece;
-use crate::three_d::geometry::{cross, dot, norm, quad_quad, scale, sub, Parallelogram, V3};
+use crate::three_d::geometry::{
+    box_of, cross, dot, norm, quad_quad, scale, sub, Parallelogram, V3,
+};
 use crate::three_d::steps::{quarter_of, tri_cell, Steps, CELLS, STEP};
 
 /// Whether the parallelogram `q` may meet the convex hull of `points` (conservative). With
@@ -31,13 +33,7 @@ use crate::three_d::steps::{quarter_of, tri_cell, Steps, CELLS, STEP};
 fn may_occlude(points: &[V3; 8], thorough: bool, q: &Parallelogram) -> bool {
     let qc = q.outline();
     // the tolerance's scale: q's size plus the points' bounding box
-    let (mut lo, mut hi) = (points[0], points[0]);
-    for p in &points[1..] {
-        for i in 0..3 {
-            lo[i] = lo[i].min(p[i]);
-            hi[i] = hi[i].max(p[i]);
-        }
-    }
+    let (lo, hi) = box_of(*points);
     let scale = q.diameter() + norm(sub(hi, lo));
     let tol = 1e-9 * scale;
     // projections on the unnormalised axis, the tolerance scaled to match: no division
@@ -224,17 +220,8 @@ pub(super) fn occluder_near(bvh: &Bvh, a: Piece, b: Piece, reach: f64) -> bool {
     let pts = corners_of_pair(quads, a, b);
     let ca = a.corners(quads);
     let na = quads[a.surface].n;
-    let (mut lo, mut hi) = (ca[0], ca[0]);
-    for c in &ca[1..] {
-        for i in 0..3 {
-            lo[i] = lo[i].min(c[i]);
-            hi[i] = hi[i].max(c[i]);
-        }
-    }
-    let lo = lo.map(|x| x - reach);
-    let hi = hi.map(|x| x + reach);
-    let near = |l: V3, h: V3| crate::three_d::bvh::boxes_meet((l, h), (lo, hi));
-    bvh.any_in_region(&near, |k| {
+    let (lo, hi) = box_of(ca);
+    bvh.any_in_box(lo.map(|x| x - reach), hi.map(|x| x + reach), |k| {
         k != a.surface
             && k != b.surface
             && may_occlude(&pts, false, &quads[k])
@@ -268,13 +255,7 @@ impl<'p> Hull<'p> {
     const BOXES_BEFORE_FACES: usize = 8;
 
     fn of(points: &'p [V3; 8]) -> Hull<'p> {
-        let (mut lo, mut hi) = (points[0], points[0]);
-        for p in &points[1..] {
-            for i in 0..3 {
-                lo[i] = lo[i].min(p[i]);
-                hi[i] = hi[i].max(p[i]);
-            }
-        }
+        let (mut lo, mut hi) = box_of(*points);
         // the quick test's tolerance reaches this far outside
         let pad = 1e-8 * norm(sub(hi, lo)).max(1e-300);
         for i in 0..3 {

@@ -30,7 +30,7 @@ use super::clustered::ClusterLink;
 use super::Hierarchy;
 use crate::math::basis::legendre;
 use crate::three_d::cluster::is_cluster;
-use crate::three_d::geometry::{norm, quad_quad, sub, Piece, V3};
+use crate::three_d::geometry::{box_of, norm, quad_quad, sub, Piece, V3};
 use crate::three_d::transfer;
 use crate::three_d::visibility::{self, pair_seed, SplitMix};
 use rayon::prelude::*;
@@ -308,13 +308,7 @@ impl Hierarchy<'_> {
             .map(|i| {
                 let a = &quads[i];
                 let ca = a.outline();
-                let (mut lo, mut hi) = (ca[0], ca[0]);
-                for p in &ca[1..] {
-                    for k in 0..3 {
-                        lo[k] = lo[k].min(p[k]);
-                        hi[k] = hi[k].max(p[k]);
-                    }
-                }
+                let (lo, hi) = box_of(ca);
                 let pad = 1e-9 * largest;
                 let (lo, hi) = (lo.map(|v| v - pad), hi.map(|v| v + pad));
                 let mut out = Vec::new();
