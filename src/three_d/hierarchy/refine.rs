@@ -152,8 +152,8 @@ impl Hierarchy<'_> {
     /// thin strip next to their common line (the floor in front of a box), which interior
     /// samples miss; and at the source's corners and centre projected onto the receiver
     /// (under a small source close in front of a large receiver the form factor peaks at up
-    /// to 1 between the grid's points; in front of a box's face standing inside a floor
-    /// element, at up to ½).
+    /// to 1 between the grid's points; in front of a box's face standing on or just above a
+    /// floor element, at up to ½).
     fn estimate(&self, r: u32, s: u32) -> (f64, f64) {
         let (er, es) = (&self.elements[r as usize], &self.elements[s as usize]);
         let qr = &self.geo.quads[er.piece.surface];
@@ -178,21 +178,18 @@ impl Hierarchy<'_> {
         // and under the source: its corners and centre projected onto the receiver's plane,
         // clamped into the receiver. A small source close in front of a large receiver (the
         // bottom of a box 2 cm above a floor) peaks at up to 1 under itself, between the grid's
-        // points. Where the source reaches the receiver's plane at an angle (a wall standing
-        // inside a floor element, its foot perhaps the grid's middle line, in the wall's
-        // plane), the strip in front of its foot sees it with a form factor up to ½: there the
-        // points are moved a hundredth of the receiver's size along the source's normal, onto
-        // its front side
+        // points. Where the source meets or nears the receiver's plane at an angle (a wall
+        // standing inside a floor element, its foot perhaps the grid's middle line, in the
+        // wall's plane; the side of a box 2 cm above a floor), the point under its lower edge
+        // lies in the source's own plane, where the form factor is 0, while the strip just in
+        // front of it sees the source with up to ½: so for every source at an angle to the
+        // receiver the points are moved a hundredth of the receiver's size along the source's
+        // normal, onto its front side
         // (a triangle's corners repeat its third)
         let n = if cb[2] == cb[3] { 3 } else { 4 };
-        let lowest = cb[..n]
-            .iter()
-            .map(|&c| qr.side(c))
-            .fold(f64::INFINITY, f64::min);
         let along = sub(qs.n, scale(qr.n, dot(qs.n, qr.n)));
         let diameter = transfer::diameter(&ca);
-        let reaches = lowest <= 1e-9 * diameter;
-        let nudge = if reaches && norm(along) > 1e-9 {
+        let nudge = if norm(along) > 1e-9 {
             scale(normalize(along), 0.01 * diameter)
         } else {
             [0.0; 3]
@@ -1204,6 +1201,46 @@ pub(super) mod tests {
         assert!(
             f >= under_centre - 1e-9 && f <= 1.0,
             "F̂ = {f}, under its centre {under_centre}"
+        );
+    }
+
+    /// A box's side 2 cm above the floor, at an angle to it, lights the strip of floor just
+    /// in front of its lower edge with a form factor near ½, while the point right under that
+    /// edge lies in the side's own plane and sees 0: F̂ takes the points under the source
+    /// moved onto its front side, whether or not the source reaches the receiver's plane
+    /// (moved only when it reached, F̂ came from the grid, about 0.1, and the bottom of a box
+    /// 2 cm above a floor went from 7.7 % to 24 % off the tracer). Checked against midpoint
+    /// quadrature of cos θ cos θ' / π r² over the side.
+    #[test]
+    fn a_tilted_source_just_above_a_receiver_is_estimated_in_front_of_it() {
+        // the side faces −x: its normal (e₁ × e₃) points away from the floor's middle
+        let quads = &floor_under_light(serde_json::json!({"name": "side",
+            "corners": [[1.0, 3.0, 0.02], [1.0, 1.0, 0.02], [1.0, 1.0, 1.02], [1.0, 3.0, 1.02]],
+            "reflectance": 0.5}));
+        let geo = Geometry::new(quads);
+        let h = at_half_a_metre(&geo, quads);
+        let (floor, side) = (0u32, 1u32);
+        assert!(geo.quads[1].n[0] < -0.99);
+        // a hundredth of the floor's diameter in front of the middle of the side's lower edge
+        let x = [1.0 - 0.01 * 32f64.sqrt(), 2.0, 0.0];
+        let m = 400;
+        let mut want = 0.0;
+        for i in 0..m {
+            for j in 0..m {
+                let (y, z) = (
+                    1.0 + 2.0 * (i as f64 + 0.5) / m as f64,
+                    0.02 + (j as f64 + 0.5) / m as f64,
+                );
+                let r = [1.0 - x[0], y - x[1], z - x[2]];
+                let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+                want += r[2] * r[0] / (std::f64::consts::PI * r2 * r2) * (2.0 / (m * m) as f64);
+            }
+        }
+        assert!(want > 0.3, "{want}");
+        let (f, _) = h.estimate(floor, side);
+        assert!(
+            f >= want - 1e-3 && f <= 0.5,
+            "F̂ = {f}, in front of the edge {want}"
         );
     }
 
