@@ -80,8 +80,10 @@ struct Hierarchy<'g> {
     /// The two-scale relation of triangle patches' elements.
     tri_basis: &'static TriangleBasis,
     k: usize,
-    /// The finest level of each surface's quadtree, by [`sizing`].
+    /// The finest level of each surface's quadtree away from narrow gaps, by [`sizing`].
     levels: Vec<u32>,
+    /// The finest level anywhere on each surface: of its fields' cells.
+    deepest: Vec<u32>,
     sizing: Sizing,
     /// The constants of the rules beyond the oracle's estimate.
     rules: Rules,
@@ -154,9 +156,12 @@ impl<'g> Hierarchy<'g> {
             .flat_map(|q| q.material.emission)
             .fold(0.0, f64::max);
         let levels: Vec<u32> = geo.quads.iter().map(|q| sizing.finest_level(q)).collect();
+        let deepest: Vec<u32> = (geo.quads.iter().enumerate())
+            .map(|(i, q)| sizing.deepest_level(i, q))
+            .collect();
         let groups = surface_groups(quads);
         let contacts = crate::three_d::cover::scene_contacts(&geo.bvh);
-        let masks = Mask::of_scene(&geo.bvh, &contacts, &groups, rules, |i| 1 << levels[i]);
+        let masks = Mask::of_scene(&geo.bvh, &contacts, &groups, rules, |i| 1 << deepest[i]);
         let elements: Vec<Element> = quads
             .iter()
             .enumerate()
@@ -195,6 +200,7 @@ impl<'g> Hierarchy<'g> {
             k,
             rules: *rules,
             levels,
+            deepest,
             sizing,
             threshold: epsilon * emax,
             typical: [0.0; 3],
@@ -241,9 +247,14 @@ impl<'g> Hierarchy<'g> {
         h
     }
 
-    /// The finest level element `e`'s surface may be split to.
+    /// The finest level element `e` may be split to: its surface's, or deeper where it lies
+    /// across a narrow gap ([`Sizing::level_at`]).
     fn finest(&self, e: u32) -> u32 {
-        self.levels[self.elements[e as usize].piece.surface]
+        let piece = self.elements[e as usize].piece;
+        self.sizing
+            .level_at(piece.surface, self.levels[piece.surface], || {
+                piece.corners(&self.geo.quads)
+            })
     }
 
     /// Links the scene to itself, refined against the current B: every ordered pair of the
@@ -684,7 +695,7 @@ impl<'g> Hierarchy<'g> {
 
     /// The field of surface `s` from its leaves.
     fn field(&self, s: usize, pick: &impl Fn(&Element) -> Vec<Rgb>) -> Field {
-        let (order, res) = (self.k - 1, 1usize << self.levels[s]);
+        let (order, res) = (self.k - 1, 1usize << self.deepest[s]);
         let mut leaves = Vec::new();
         self.collect_leaves(s as u32, pick, &mut leaves);
         if self.geo.quads[s].tri {
@@ -709,7 +720,7 @@ impl<'g> Hierarchy<'g> {
                 let Some(mask) = self.masks[s].as_ref().filter(|_| !self.geo.quads[s].tri) else {
                     return self.field(s, &reported);
                 };
-                let level = self.levels[s];
+                let level = self.deepest[s];
                 let finest = (level + SUB.trailing_zeros()).min(level.max(MAX_LEVEL));
                 let mut leaves = Vec::new();
                 self.collect_reported(s as u32, mask, finest, &mut leaves);
@@ -801,11 +812,11 @@ impl<'g> Hierarchy<'g> {
     fn picture(&self, max_side: usize) -> crate::methods::compress::MagnitudePicture {
         // each surface's finest cells, one run after another
         let mut start = vec![0usize; self.quads.len() + 1];
-        for (i, &l) in self.levels.iter().enumerate() {
+        for (i, &l) in self.deepest.iter().enumerate() {
             start[i + 1] = start[i] + (1usize << (2 * l));
         }
         let run = |e: &Element| {
-            let shift = self.levels[e.piece.surface] - e.level;
+            let shift = self.deepest[e.piece.surface] - e.level;
             let (cs, ct) = ((e.cell[0] as usize) << shift, (e.cell[1] as usize) << shift);
             let lo = start[e.piece.surface] + morton(cs, ct);
             lo..lo + (1usize << (2 * shift))
