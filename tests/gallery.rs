@@ -176,9 +176,10 @@ fn a_small_cube_beside_a_box() {
 }
 
 /// Two boxes 2 cm apart: each side in the gap sees the other's B at the scale of the gap, and
-/// the default `min_element_size` follows the narrowest gap between faces that see each other
-/// (down to a 256th of the diagonal). At the room's 0.24 alone, the side of the lower box in
-/// the gap came out 25 % bright and a cell of it 76 %.
+/// the elements around the space between faces that see each other across a gap narrower than
+/// the default size go down to no larger than the gap (`sizing`'s narrow parts). At the
+/// room's 0.24 alone, the side of the lower box in the gap came out 25 % bright and a cell of
+/// it 76 %.
 #[test]
 fn two_boxes_a_narrow_gap_apart() {
     at_defaults("two-boxes-apart", 128);
