@@ -220,9 +220,9 @@ pub struct Solver {
     pub epsilon: Option<f64>,
     /// Hierarchical in 3d only: the smallest element's edge in scene units, the same on every
     /// surface. Default: the diagonal of the scene's bounding box / 64, or the smallest
-    /// parallelogram's shorter side (or half its longer side, when less) or the narrowest gap
-    /// between two parallelograms that see each other if that is smaller, but at least the
-    /// diagonal / 256.
+    /// parallelogram's shorter side (or half its longer side, when less) if that is smaller,
+    /// but at least the diagonal / 256; around a gap narrower than that between two
+    /// parallelograms that see each other, elements go down to no larger than the gap.
     #[serde(default)]
     #[schema(nullable = false, exclusive_minimum = 0)]
     pub min_element_size: Option<f64>,
