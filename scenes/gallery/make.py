@@ -227,7 +227,8 @@ def closed_box(name, cx, cz, sx, sy, sz, y0, rho=WHITE, angle_deg=0.0):
 def furniture():
     """Scenes of everyday shapes, written after the default element size followed the smallest
     face and the narrowest gap, to try it on scenes it was not made from (the shelf near a
-    side wall came later, with the near occluders' rule). All but the box above the floor and
+    side wall came later, with the near occluders' rule; the cabinet and the turned box near
+    a wall with the narrow gaps' sizes where they are). All but the box above the floor and
     the shelf meet the gallery's requirement at the defaults and are tested; those two do not
     yet (benches/README.md, "Scenes it was not made from")."""
     wood = [0.6, 0.4, 0.2]
@@ -263,6 +264,11 @@ def furniture():
     lifted = low_room() + closed_box("lifted", 3, 4, 1, 1, 1, 0.02, [0.3, 0.5, 0.8])
     shelf = low_room() + closed_box("shelf", 5, 9.7, 1.5, 0.04, 0.4, 2.0, [0.8, 0.8, 0.8])
     side_shelf = corner_lit() + closed_box("shelf", 7.7, 3, 0.4, 0.04, 1.5, 1.5, [0.8, 0.8, 0.8])
+    # a cabinet whose back is 1 cm from the back wall, and a box turned by 5 degrees whose
+    # nearest edge is 5 mm from the right wall: gaps below a 256th of the diagonal
+    cabinet = corner_lit() + box("cab", 4, 5.74, 1.2, 2.0, 0.5, 0, wood)
+    reach = 0.5 * (math.cos(math.radians(5)) + math.sin(math.radians(5)))
+    turned_near_wall = corner_lit() + box("w", 8 - 0.005 - reach, 3, 1, 1, 1, 5, [0.8, 0.8, 0.3])
     return {
         "cube-on-a-box": doc("A small cube on a box", on_a_box),
         "pillar": doc("A thin pillar", pillar),
@@ -273,6 +279,8 @@ def furniture():
         "lifted-box": doc("A box 2 cm above the floor", lifted),
         "shelf": doc("A thin shelf 10 cm from a wall", shelf),
         "side-shelf": doc("A shelf 10 cm from a side wall, lit from a corner", side_shelf),
+        "cabinet": doc("A cabinet 1 cm from the wall", cabinet),
+        "turned-box-near-a-wall": doc("A turned box 5 mm from a wall", turned_near_wall),
     }
 
 

@@ -251,10 +251,12 @@ impl<'g> Hierarchy<'g> {
     /// across a narrow gap ([`Sizing::level_at`]).
     fn finest(&self, e: u32) -> u32 {
         let piece = self.elements[e as usize].piece;
-        self.sizing
-            .level_at(piece.surface, self.levels[piece.surface], || {
-                piece.corners(&self.geo.quads)
-            })
+        self.sizing.level_at(
+            piece.surface,
+            &self.geo.quads[piece.surface],
+            self.levels[piece.surface],
+            || piece.corners(&self.geo.quads),
+        )
     }
 
     /// Links the scene to itself, refined against the current B: every ordered pair of the
