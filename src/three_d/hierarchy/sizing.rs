@@ -36,10 +36,10 @@ const DEFAULT_DIVISIONS: f64 = 64.0;
 /// that needs finer gives `min_element_size`.
 const FINEST_DEFAULT_DIVISIONS: f64 = 256.0;
 
-/// Elements across a narrow gap from another face may reach down to the gap d within this
-/// many gaps of that face (a box around it grown by this times d): the kernel across the gap
-/// varies over d, and a point x from the face sees it vary over x, so beyond a few gaps the
-/// size of the rest of the surface serves.
+/// Elements may reach down to a narrow gap d within this many gaps of the space between its
+/// two faces (that space's box grown by this times d): the kernel across the gap varies over
+/// d, and a point x away from it sees it vary over x, so beyond a few gaps the size of the
+/// rest of the surface serves.
 const NARROW_REACH: f64 = 2.0;
 
 /// Inside a slot, an element at depth x from its sides may be as large as x over this. The
@@ -61,8 +61,8 @@ pub(super) struct Sizing {
     narrow: Vec<Vec<Narrow>>,
 }
 
-/// A part of a surface across a narrow gap from another face: an element whose bounding box
-/// meets the box `lo`–`hi` may be split down to `level`.
+/// A narrow gap near a surface: an element whose bounding box comes within [`NARROW_REACH`]
+/// gaps of the space between the two faces may be split to [`Narrow::size`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Narrow {
     /// The space between the two faces: each one's box grown by the gap, met with the other's.
@@ -184,12 +184,12 @@ impl Narrow {
 /// grown by d, meets the other's; every surface with elements within [`NARROW_REACH`] d of it
 /// may split them until they are no larger than d (the two faces, and the floor under the gap
 /// and in front of its mouth), or inside a slot than their depth into it over
-/// [`NARROW_GRADING`] ([`Narrow::size`]). Across a gap d each face sees the other's B, and the light
-/// that comes in through the gap's mouth, vary over d: the bottom of a box 2 cm above a floor,
-/// lit only through that slot, was 7.7 % off the tracer at a size of 0.06 everywhere and is
-/// 3.2 % at the defaults with this (0.8 % at ε = 2.5e-4; rounded to elements at least d
-/// instead, 1.9 % there); elsewhere the surfaces keep the scene's size, so one narrow gap
-/// does not make the whole scene fine.
+/// [`NARROW_GRADING`] ([`Narrow::size`]). Across a gap d each face sees the other's B, and
+/// the light that comes in through the gap's mouth, vary over d: the bottom of a box 2 cm
+/// above a floor, lit only through that slot, was 7.7 % off the tracer at a size of 0.06
+/// everywhere and is 3.2 % at the defaults with this (0.8 % at ε = 2.5e-4; rounded to
+/// elements at least d instead, 1.9 % there); elsewhere the surfaces keep the scene's size,
+/// so one narrow gap does not make the whole scene fine.
 fn narrow_parts(quads: &[Parallelogram], sizing: &Sizing) -> Vec<Vec<Narrow>> {
     let diagonal = scene_diagonal(quads);
     let mut narrow = vec![Vec::new(); quads.len()];
