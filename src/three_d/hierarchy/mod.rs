@@ -156,7 +156,10 @@ impl<'g> Hierarchy<'g> {
             .flat_map(|q| q.material.emission)
             .fold(0.0, f64::max);
         let levels: Vec<u32> = geo.quads.iter().map(|q| sizing.finest_level(q)).collect();
-        let deepest: Vec<u32> = (geo.quads.iter().enumerate())
+        let deepest: Vec<u32> = geo
+            .quads
+            .iter()
+            .enumerate()
             .map(|(i, q)| sizing.deepest_level(i, q))
             .collect();
         let groups = surface_groups(quads);

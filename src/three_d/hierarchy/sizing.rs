@@ -14,6 +14,7 @@
 //! elements no larger than the gap ([`narrow_parts`]): what varies across a gap varies at its
 //! width, and only there.
 
+use crate::three_d::bvh::boxes_meet;
 use crate::three_d::geometry::{bounding_box, box_of, norm, quad_quad, sub, Parallelogram, V3};
 
 /// The deepest level of any surface's quadtree: 1024 × 1024 elements, the document's largest
@@ -160,16 +161,16 @@ impl Narrow {
     /// along its rim, and fewer and fewer inside, rather than d's over its whole area.
     fn size(&self, lo: V3, hi: V3) -> Option<f64> {
         let reach = NARROW_REACH * self.gap;
-        let meets = (0..3).all(|k| lo[k] <= self.hi[k] + reach && self.lo[k] - reach <= hi[k]);
-        if !meets {
+        let around = (self.lo.map(|x| x - reach), self.hi.map(|x| x + reach));
+        if !boxes_meet((lo, hi), around) {
             return None;
         }
-        let wide: Vec<usize> = (0..3)
-            .filter(|&k| self.hi[k] - self.lo[k] > 2.0 * reach)
-            .collect();
-        let depth = if wide.len() >= 2 {
-            wide.iter()
-                .map(|&k| (lo[k] - self.lo[k]).min(self.hi[k] - hi[k]))
+        // (called for every element judged on such a surface: no allocation)
+        let wide = [0, 1, 2].map(|k| self.hi[k] - self.lo[k] > 2.0 * reach);
+        let depth = if wide.iter().filter(|&&w| w).count() >= 2 {
+            (0..3)
+                .filter(|&k| wide[k])
+                .map(|k| (lo[k] - self.lo[k]).min(self.hi[k] - hi[k]))
                 .fold(f64::INFINITY, f64::min)
                 .max(0.0)
         } else {
