@@ -119,8 +119,9 @@ def doc(name, surfaces, eye=None, look=None, grid=4):
     }
 
 
-def grid_room(n):
-    """A 10 x 10 x 10 room with an n x n grid of boxes and a 2 x 2 light under the ceiling."""
+def grid_room(n, meshes=False):
+    """A 10 x 10 x 10 room with an n x n grid of boxes and a 2 x 2 light under the ceiling;
+    each box one mesh of ten triangles when `meshes`."""
     surfaces = room(10, 10, 10)
     surfaces.append(ceiling_light(4, 4, 6, 6, 9.99, 10.0))
     step = 10 / (n + 1)
@@ -128,8 +129,13 @@ def grid_room(n):
     for i in range(n):
         for j in range(n):
             height = size * (1.0 + 0.5 * ((i + 2 * j) % 3))
-            surfaces += box(f"box{i}{j}", step * (i + 1), step * (j + 1), size, height, size)
-    return doc(f"A room with {n} x {n} boxes", surfaces)
+            at = (f"box{i}{j}", step * (i + 1), step * (j + 1), size, height, size)
+            if meshes:
+                surfaces.append(box_mesh(*at))
+            else:
+                surfaces += box(*at)
+    kind = " as meshes" if meshes else ""
+    return doc(f"A room with {n} x {n} boxes{kind}", surfaces)
 
 
 def rotated_boxes():
@@ -288,6 +294,7 @@ def main():
     scenes = {
         "room-3x3": grid_room(3),
         "room-7x7": grid_room(7),
+        "room-3x3-meshes": grid_room(3, meshes=True),
         "rotated-boxes": rotated_boxes(),
         "small-object": small_object(),
         "box-against-wall": box_against_wall(),

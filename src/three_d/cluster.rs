@@ -20,18 +20,23 @@
 //! `Emitter`, expanded to second order), and the error is third order in the source's size
 //! over the distance; a source that is one element sends its mean B through each member's
 //! point-to-polygon form factor instead, in closed form (Baum, Rushmeier and Winget 1989),
-//! exact for that mean whatever the distance; otherwise the source's intensity is taken toward each receiving member
-//! where it is linear in the direction (an element, or a cluster whose members all face the
-//! member or all face away), else toward the receiver's centre,
+//! exact for that mean whatever the distance; otherwise the source's intensity is taken toward
+//! each receiving member where it is linear in the direction (an element, or a cluster whose
+//! members all face the member or all face away), else that of the parts of it that send
+//! toward the receiver's centre, and sent from the centre of that intensity (the members'
+//! centroids weighted by what each sends toward the receiver's centre),
 //!
 //! ```text
 //! I_S(ω)   = Σ_{j ∈ S} B̄_j A_j (n_j · ω)₊ / π          (the radiant intensity of S toward ω)
+//! c_S      = Σ_{j ∈ S} B̄_j A_j (n_j · ω_R)₊ y_j / (π I_S(ω_R))   (where it comes from)
 //! H_i     += V · I_S(ω_i) · (n_i · (c_S − x_i))₊ / |c_S − x_i|³   (each member i of R at x_i)
 //! ```
 //!
-//! with V the visible fraction between the two ends and ω_i the direction from c_S to x_i (or
-//! to R's centre), and the error is first order in the larger end's size. The oracle bounds
-//! what each leaves out.
+//! with V the visible fraction between the two ends, ω_R the direction of R's centre and ω_i
+//! that from c_S to x_i (or ω_R). The error is second order in the source's size over the
+//! distance (from the centroid weighted by area it was first order: a box lit from above sent
+//! a ceiling its light from below its top) and first order in the receiving member's. The
+//! oracle bounds what each leaves out.
 //!
 //! Two clusters interact only if a point of each may be in front of a member of the other:
 //! each cluster's box, the cone of its members' normals and the range of its points along the
