@@ -280,14 +280,3 @@ fn a_small_object_converges_as_epsilon_shrinks() {
 fn meshes_on_a_floor() {
     at_defaults("meshes-on-a-floor", 64);
 }
-
-/// The room with 3 × 3 boxes, each box one mesh of ten triangles, so that the boxes are
-/// clusters and their light reaches the room through cluster links. (Their light was sent
-/// from each box's centroid weighted by area, below the top that sends nearly all of it
-/// upward: a box 1.31 % off, raw 1.85 %, with the ceiling 0.89 % dark against the room of
-/// parallelograms, `hierarchy::clustered`'s `SpreadSource`.) 256² paths a cell: a box's
-/// triangles are small, and the worst of them is 3.3 % off.
-#[test]
-fn a_room_with_3_by_3_boxes_as_meshes() {
-    at_defaults("room-3x3-meshes", 256);
-}

@@ -20,23 +20,24 @@
 //! `Emitter`, expanded to second order), and the error is third order in the source's size
 //! over the distance; a source that is one element sends its mean B through each member's
 //! point-to-polygon form factor instead, in closed form (Baum, Rushmeier and Winget 1989),
-//! exact for that mean whatever the distance; otherwise the source's intensity is taken toward
-//! each receiving member where it is linear in the direction (an element, or a cluster whose
-//! members all face the member or all face away), else that of the parts of it that send
-//! toward the receiver's centre, and sent from the centre of that intensity (the members'
-//! centroids weighted by what each sends toward the receiver's centre),
+//! exact for that mean whatever the distance; otherwise each member j of the source that
+//! sends toward the receiving point x (the whole cluster where all its members face the
+//! direction of x, else the parts of it that face the receiver's centre, each where its
+//! weights at x are positive) weighs by what it sends there, and the sum is taken about the
+//! centroid of those weights,
 //!
 //! ```text
-//! I_S(ω)   = Σ_{j ∈ S} B̄_j A_j (n_j · ω)₊ / π          (the radiant intensity of S toward ω)
-//! c_S      = Σ_{j ∈ S} B̄_j A_j (n_j · ω_R)₊ y_j / (π I_S(ω_R))   (where it comes from)
-//! H_i     += V · I_S(ω_i) · (n_i · (c_S − x_i))₊ / |c_S − x_i|³   (each member i of R at x_i)
+//! w_j(x)   = B̄_j A_j n_j · (x − y_j)                     (J · x − K of the part's moments)
+//! c(x)     = Σ_j w_j(x) y_j / Σ_j w_j(x)                  (Q x − q over the same sum)
+//! H_i     += V · Σ_j w_j(x_i) · n_i · (c − x_i) / (π |c − x_i|⁴)   (each member i of R at x_i)
 //! ```
 //!
-//! with V the visible fraction between the two ends, ω_R the direction of R's centre and ω_i
-//! that from c_S to x_i (or ω_R). The error is second order in the source's size over the
-//! distance (from the centroid weighted by area it was first order: a box lit from above sent
-//! a ceiling its light from below its top) and first order in the receiving member's. The
-//! oracle bounds what each leaves out.
+//! with V the visible fraction between the two ends. About c the term of first order in the
+//! source's size over the distance vanishes, and each member's cosine is read at its own
+//! plane: the error is second order in the source's size and first order in the receiving
+//! member's. (As an intensity I(ω) = Σ_j B̄_j A_j (n_j · ω)₊ / π sent from one point, the
+//! cosines were read at that point: first order, and large where a member is seen edge-on.)
+//! The oracle bounds what each leaves out.
 //!
 //! Two clusters interact only if a point of each may be in front of a member of the other:
 //! each cluster's box, the cone of its members' normals and the range of its points along the
