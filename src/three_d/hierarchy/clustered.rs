@@ -44,6 +44,7 @@
 //! a receiver at its finest level is not split (`Hierarchy::splits`).
 
 use super::Hierarchy;
+use crate::math::quadrature::Rule;
 use crate::scene::Rgb;
 use crate::three_d::cluster::{is_cluster, Bound, Clusters};
 use crate::three_d::cover::{Exposure, Partial};
@@ -1144,8 +1145,8 @@ impl Hierarchy<'_> {
             });
             // a constant H on the member: h₀ = H √A
             let v = l.member_v(k);
+            out[k] = h.map(|h| v * h * area.sqrt());
             k += 1;
-            out[k - 1] = h.map(|h| v * h * area.sqrt());
         });
     }
 
@@ -1218,33 +1219,31 @@ impl Hierarchy<'_> {
     }
 
     /// The points of a receiving member (or element) `e` at which a held kernel is read
-    /// where its centroid would not do ([`CENTROID_SPREAD`]): a rule of degree 2 on a
-    /// triangle (the three points (2/3, 1/6, 1/6)) and of degree 3 on a parallelogram (2 × 2
-    /// Gauss points), so that the member's mean form factor is taken with an error of third
-    /// order in its size over the distance instead of second.
+    /// where its centroid would not do ([`CENTROID_SPREAD`]), each of equal weight: a rule of
+    /// degree 2 on a triangle and of degree 3 on a parallelogram, so that the member's mean
+    /// form factor is taken with an error of third order in its size over the distance
+    /// instead of second. On a parallelogram, the 2 × 2 tensor Gauss points
+    /// ([`Rule::gauss`]); on a triangle, the symmetric rule of the three points
+    /// (2/3, 1/6, 1/6), one point fewer than the conical product rule of the same degree
+    /// ([`crate::math::triangle::TriangleRule`]), whose weights also differ.
     fn member_points(&self, e: u32) -> smallvec::SmallVec<[V3; 4]> {
         let el = &self.elements[e as usize];
         let c = el.piece.corners(&self.geo.quads);
         if self.geo.quads[el.piece.surface].tri {
             let at = |a: V3, b: V3, d: V3| add(scale(a, 2.0 / 3.0), scale(add(b, d), 1.0 / 6.0));
-            smallvec::smallvec![
+            return smallvec::smallvec![
                 at(c[0], c[1], c[2]),
                 at(c[1], c[2], c[0]),
                 at(c[2], c[0], c[1])
-            ]
-        } else {
-            let g = 0.5 / 3f64.sqrt();
-            let (e1, e3) = (sub(c[1], c[0]), sub(c[3], c[0]));
-            [
-                (0.5 - g, 0.5 - g),
-                (0.5 + g, 0.5 - g),
-                (0.5 - g, 0.5 + g),
-                (0.5 + g, 0.5 + g),
-            ]
-            .into_iter()
+            ];
+        }
+        let gauss = &Rule::gauss(2).nodes;
+        let (e1, e3) = (sub(c[1], c[0]), sub(c[3], c[0]));
+        gauss
+            .iter()
+            .flat_map(|&v| gauss.iter().map(move |&u| (u, v)))
             .map(|(u, v)| add(c[0], add(scale(e1, u), scale(e3, v))))
             .collect()
-        }
     }
 
     /// The unit direction from link `l`'s source's centre to its receiver's: the one its
@@ -2224,10 +2223,10 @@ mod tests {
         }
     }
 
-    /// rounding, for every cluster of a closed sphere (the normal cones of its upper clusters
     /// A cluster's cut toward ω ([`Hierarchy::intensity_cut`]) holds the members that face ω,
     /// and their weights ([`Hierarchy::part_weights`]) at a point x two units along ω add up
     /// to Σ_j A_j B̄_j n_j · (x − y_j) over them, and their moment to Σ_j w_j(x) y_j, to
+    /// rounding, for every cluster of a closed sphere (the normal cones of its upper clusters
     /// hold every direction, those of its lower ones few) lit unevenly from a plate beside
     /// it, toward 200 directions each.
     #[test]
