@@ -1069,6 +1069,11 @@ pub(super) mod tests {
         // the inner sixteenth of each of the ceiling's quarters
         let kk = h.k * h.k;
         let quarter = h.split(ceiling);
+        // child `c` (`2 dt + ds`) of a parent, pulled into the parent's coefficients
+        let filters = h.filters;
+        let pull = |child: &[Rgb], c: u32, parent: &mut [Rgb]| {
+            super::super::tree::pull(filters, child, (c / 2) as usize, (c % 2) as usize, parent)
+        };
         let mut pulled = vec![[0.0; 3]; kk];
         for c in 0..4u32 {
             let sixteenth = h.split(quarter + c);
@@ -1079,22 +1084,9 @@ pub(super) mod tests {
                 if g == 3 - c {
                     el.b[0] = [4.0 * el.area.sqrt(); 3];
                 }
-                let b = el.b.clone();
-                super::super::tree::pull(
-                    h.filters,
-                    &b,
-                    (g / 2) as usize,
-                    (g % 2) as usize,
-                    &mut quarter_b,
-                );
+                pull(&el.b, g, &mut quarter_b);
             }
-            super::super::tree::pull(
-                h.filters,
-                &quarter_b,
-                (c / 2) as usize,
-                (c % 2) as usize,
-                &mut pulled,
-            );
+            pull(&quarter_b, c, &mut pulled);
             h.elements[(quarter + c) as usize].b = quarter_b;
         }
         h.elements[ceiling as usize].b = pulled.clone();
