@@ -57,7 +57,7 @@ use super::clustered::{ClusterLink, ClusterVerdict};
 use super::links::Links;
 use super::shadows::Cells;
 use super::tree::{push, Element, NONE};
-use super::{Hierarchy, Overrun, MAX_KK};
+use super::{Hierarchy, Overrun};
 use crate::math::basis::legendre;
 use crate::progress::{Cancelled, Progress};
 use crate::scene::Rgb;
@@ -357,9 +357,7 @@ impl Hierarchy<'_> {
             self.elements[r as usize].piece,
             self.elements[s as usize].piece,
         );
-        let k2 = self.k * self.k;
-        let mut sent = [[0.0; 3]; MAX_KK];
-        self.elements[s as usize].sent(&mut sent[..k2]);
+        let sent = self.sending(s);
         let found;
         let occluders = match occluders {
             Some(o) => o,
@@ -379,7 +377,7 @@ impl Hierarchy<'_> {
             &|s_, t_| self.light_at(s, s_, t_),
             // a leaf's light is the polynomial it sends: no ratio to take
             (!self.elements[s as usize].is_leaf())
-                .then_some(&|s_: f64, t_: f64| self.value_at(s, &sent[..k2], s_, t_)),
+                .then_some(&|s_: f64, t_: f64| self.value_at(s, &sent, s_, t_)),
         )
     }
 
@@ -397,16 +395,21 @@ impl Hierarchy<'_> {
             .as_ref()
             .is_some_and(|m| m.covered(s, t));
         let at = if covered { e } else { self.leaf_at(e, s, t) };
-        let el = &self.elements[at as usize];
-        let light = if let Exposure::Partial(_) = el.exposure {
-            let k2 = self.k * self.k;
-            let mut sent = [[0.0; 3]; MAX_KK];
-            el.sent(&mut sent[..k2]);
-            self.value_at(at, &sent[..k2], s, t)
+        self.value_at(at, &self.sending(at), s, t)
+            .max(f64::MIN_POSITIVE)
+    }
+
+    /// The coefficients of the polynomial that element `e` sends ([`Element::sent`]): its B,
+    /// unless a solid partly covers it.
+    fn sending(&self, e: u32) -> std::borrow::Cow<'_, [Rgb]> {
+        let el = &self.elements[e as usize];
+        if let Exposure::Partial(_) = el.exposure {
+            let mut sent = vec![[0.0; 3]; el.b.len()];
+            el.sent(&mut sent);
+            sent.into()
         } else {
-            self.value_at(at, &el.b, s, t)
-        };
-        light.max(f64::MIN_POSITIVE)
+            el.b.as_slice().into()
+        }
     }
 
     /// The value at (s, t) (mean of the channels) of the polynomial with coefficients `c`
