@@ -226,6 +226,27 @@ impl Bound {
         }
     }
 
+    /// The point of the box nearest to `p` (p itself when inside).
+    pub(super) fn nearest(&self, p: V3) -> V3 {
+        [0, 1, 2].map(|a| p[a].clamp(self.lo[a], self.hi[a]))
+    }
+
+    /// The largest n · ω over the normal cone, for the unit `omega` (1 for a cone of π/2 or
+    /// more, or one that holds ω).
+    pub(super) fn largest_cosine(&self, omega: V3) -> f64 {
+        if self.cos <= 0.0 {
+            return 1.0;
+        }
+        let along = dot(self.axis, omega);
+        let across = (1.0 - along * along).max(0.0).sqrt();
+        // ω at an angle θ from the axis, the cone's half-angle α: cos(θ − α) where θ > α
+        if along >= self.cos {
+            1.0
+        } else {
+            along * self.cos + across * self.sin
+        }
+    }
+
     /// Whether the two sets may exchange light: each may be in front of the other.
     pub(super) fn facing(&self, other: &Bound) -> bool {
         self.front(other) && other.front(self)
