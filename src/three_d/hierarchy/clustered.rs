@@ -2453,6 +2453,28 @@ mod tests {
     /// rounding, for every cluster of a closed sphere (the normal cones of its upper clusters
     /// hold every direction, those of its lower ones few) lit unevenly from a plate beside
     /// it, toward 200 directions each.
+    /// Members whose weights nearly cancel put their centroid m / Σ w anywhere, here a
+    /// millimetre above the receiving point x; their light still comes from their box, a
+    /// unit square 1 above x, so the irradiance is at most Σ w / (π · 1²), however m falls.
+    #[test]
+    fn a_clusters_light_is_sent_from_within_its_box() {
+        let square = [
+            [-0.5, 1.0, -0.5],
+            [0.5, 1.0, -0.5],
+            [0.5, 1.0, 0.5],
+            [-0.5, 1.0, 0.5],
+        ];
+        let bound = Bound::of_polygon(&square, [0.0, -1.0, 0.0]);
+        let w = [1e-3; 3];
+        let sum: f64 = w.iter().sum();
+        let m = scale([0.0, 1e-3, 0.0], sum);
+        let h = weighted_irradiance(w, m, [0.0; 3], [0.0, 1.0, 0.0], &bound);
+        for c in 0..3 {
+            assert!(h[c] > 0.0, "{h:?}");
+            assert!(h[c] <= w[c] / std::f64::consts::PI * (1.0 + 1e-12), "{h:?}");
+        }
+    }
+
     #[test]
     fn a_clusters_cut_weighs_as_the_members_that_face_its_direction() {
         let (rings, segments) = (8, 16);
