@@ -780,18 +780,7 @@ impl Hierarchy<'_> {
                 (id, self.elements[id as usize].piece)
             };
             let q = &self.geo.quads[piece.surface];
-            let (mut u, mut v) = (rng.next_f64(), rng.next_f64());
-            let (s, t) = if q.tri {
-                if u + v > 1.0 {
-                    (u, v) = (1.0 - u, 1.0 - v);
-                }
-                piece.at_local(u, v)
-            } else {
-                (
-                    piece.s[0] + u * (piece.s[1] - piece.s[0]),
-                    piece.t[0] + v * (piece.t[1] - piece.t[0]),
-                )
-            };
+            let (s, t) = uniform_in(&piece, q.tri, rng);
             point = Sample {
                 x: q.at(s, t),
                 surface: piece.surface,
@@ -1173,18 +1162,7 @@ impl Hierarchy<'_> {
             piece = children[pick];
             area *= 0.25;
         }
-        let (mut u, mut v) = (rng.next_f64(), rng.next_f64());
-        let (ps, pt) = if q.tri {
-            if u + v > 1.0 {
-                (u, v) = (1.0 - u, 1.0 - v);
-            }
-            piece.at_local(u, v)
-        } else {
-            (
-                piece.s[0] + u * (piece.s[1] - piece.s[0]),
-                piece.t[0] + v * (piece.t[1] - piece.t[0]),
-            )
-        };
+        let (ps, pt) = uniform_in(&piece, q.tri, rng);
         let send = Sample {
             x: q.at(ps, pt),
             surface,
@@ -1935,6 +1913,22 @@ fn facing_kernel(recv: &Sample, send: &Sample, disc: f64) -> Option<f64> {
     }
     let r2 = dot(d, d);
     Some(cx * cy / (r2 * (r2 + disc)))
+}
+
+/// A uniform point of `piece` (a triangle's when `tri`), in its surface's parameters.
+fn uniform_in(piece: &Piece, tri: bool, rng: &mut SplitMix) -> (f64, f64) {
+    let (mut u, mut v) = (rng.next_f64(), rng.next_f64());
+    if tri {
+        if u + v > 1.0 {
+            (u, v) = (1.0 - u, 1.0 - v);
+        }
+        piece.at_local(u, v)
+    } else {
+        (
+            piece.s[0] + u * (piece.s[1] - piece.s[0]),
+            piece.t[0] + v * (piece.t[1] - piece.t[0]),
+        )
+    }
 }
 
 /// Whether the plane through `x` with normal `n` leaves the whole sphere behind it: a member
