@@ -44,7 +44,7 @@
 //! cone's axis bound that (`Bound::front`). So the clusters of a planar mesh never link to
 //! one another, and those of a convex one only along their shared borders.
 
-use crate::three_d::geometry::{add, dot, norm, scale, sub, Parallelogram, V3};
+use crate::three_d::geometry::{add, centroid, dot, norm, scale, sub, Parallelogram, V3};
 
 /// A reference to a cluster (this bit set) or to an element of the hierarchy.
 pub(super) const CLUSTER: u32 = 1 << 31;
@@ -382,15 +382,10 @@ impl Clusters {
     /// 3 mm slits between them; a furnace (B = 2 everywhere) put the first at 1.76 and the last
     /// at 2.04 (`tests/meshes.rs`, `a_row_of_books_keeps_the_furnace_on_every_side`).
     pub(super) fn new(quads: &[Parallelogram], groups: &[Vec<u32>]) -> Clusters {
-        let centroid = |q: &Parallelogram| {
-            let c = q.outline();
-            if q.tri {
-                scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0)
-            } else {
-                scale(add(c[0], c[2]), 0.5)
-            }
-        };
-        let centres: Vec<V3> = quads.iter().map(centroid).collect();
+        let centres: Vec<V3> = quads
+            .iter()
+            .map(|q| centroid(&q.outline(), q.tri))
+            .collect();
         let mut tree = Clusters {
             nodes: Vec::new(),
             order: Vec::new(),

@@ -80,16 +80,26 @@ pub(crate) fn sym_axpy(a: f64, x: &Sym, y: &Sym) -> Sym {
     [0, 1, 2, 3, 4, 5].map(|i| a * x[i] + y[i])
 }
 
+/// The centroid of a parallelogram with corners c₀ … c₃ in order (its diagonal's
+/// midpoint), or of a triangle c₀ c₁ c₂ when `triangle`.
+pub(crate) fn centroid(c: &[V3; 4], triangle: bool) -> V3 {
+    if triangle {
+        scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0)
+    } else {
+        scale(add(c[0], c[2]), 0.5)
+    }
+}
+
 /// The covariance about its centroid of a uniform point on a parallelogram with corners
 /// c₀ … c₃ in order, (e₁ e₁ᵀ + e₂ e₂ᵀ) / 12, or on a triangle c₀ c₁ c₂, Σ_i v_i v_iᵀ / 12 with
 /// v_i the vertices' offsets from the centroid (the barycentric coordinates' variance is
 /// 1/18 and their covariance −1/36).
 pub(crate) fn covariance(c: &[V3; 4], triangle: bool) -> Sym {
     if triangle {
-        let centroid = scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0);
+        let centre = centroid(c, true);
         let mut out = [0.0; 6];
         for v in &c[..3] {
-            let o = sub(*v, centroid);
+            let o = sub(*v, centre);
             out = sym_axpy(1.0 / 12.0, &sym_of(o), &out);
         }
         out
@@ -367,6 +377,40 @@ impl Piece {
         let [a, b, c] = self.triangle();
         let at = |p: [f64; 2]| q.at(p[0], p[1]);
         [at(a), at(b), at(c), at(c)]
+    }
+
+    /// Its centroid.
+    pub(super) fn centre(&self, quads: &[Parallelogram]) -> V3 {
+        centroid(&self.corners(quads), quads[self.surface].tri)
+    }
+
+    /// The radius of a sphere about its centre that holds it: half its surface's diameter
+    /// scaled by the piece's side in parameters.
+    pub(super) fn radius(&self, quads: &[Parallelogram]) -> f64 {
+        0.5 * quads[self.surface].diameter() * (self.s[1] - self.s[0])
+    }
+
+    /// Child `c` (0…3) of its four-way midpoint split: a triangle's as
+    /// [`Piece::tri_child`] numbers them, a parallelogram's with s halved by `c % 2` and t by
+    /// `c / 2`.
+    pub(super) fn child(&self, triangle: bool, c: usize) -> Piece {
+        if triangle {
+            return self.tri_child(c);
+        }
+        let (ms, mt) = (0.5 * (self.s[0] + self.s[1]), 0.5 * (self.t[0] + self.t[1]));
+        Piece {
+            s: if c.is_multiple_of(2) {
+                [self.s[0], ms]
+            } else {
+                [ms, self.s[1]]
+            },
+            t: if c / 2 == 0 {
+                [self.t[0], mt]
+            } else {
+                [mt, self.t[1]]
+            },
+            ..*self
+        }
     }
 
     /// The (s, t) of a triangle piece's vertices, in the order of the reference triangle's.

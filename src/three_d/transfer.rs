@@ -15,7 +15,7 @@ use crate::math::quadrature::Rule;
 use crate::math::triangle::{TriangleBasis, TriangleRule};
 use crate::three_d::geometry::Piece;
 use crate::three_d::geometry::{
-    add, cross, dot, norm, point_quad, quad_quad, scale, sub, Parallelogram, V3,
+    centroid, cross, dot, norm, point_quad, quad_quad, sub, Parallelogram, V3,
 };
 
 /// Largest k = m + 1 (the document allows m ≤ 8) and Gauss rule handled on the stack.
@@ -286,11 +286,11 @@ pub(super) fn diameter(c: &[V3; 4]) -> f64 {
 /// A ball around a piece given by its corners: (centre, radius).
 fn ball(c: &[V3; 4]) -> (V3, f64) {
     if c[2] == c[3] {
-        let m = scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0);
+        let m = centroid(c, true);
         let r = (0..3).map(|i| norm(sub(c[i], m))).fold(0.0, f64::max);
         return (m, r);
     }
-    (scale(add(c[0], c[2]), 0.5), 0.5 * diameter(c))
+    (centroid(c, false), 0.5 * diameter(c))
 }
 
 impl Ctx<'_> {

@@ -49,7 +49,7 @@ use crate::scene::Rgb;
 use crate::three_d::cluster::{is_cluster, Bound, Clusters};
 use crate::three_d::cover::{Exposure, Partial};
 use crate::three_d::geometry::{
-    add, covariance, dot, norm, scale, sub, sym, sym_axpy, Parallelogram, Piece, Sym, V3,
+    add, centroid, covariance, dot, norm, scale, sub, sym, sym_axpy, Parallelogram, Piece, Sym, V3,
 };
 #[cfg(doc)]
 use crate::three_d::rules::Rules;
@@ -432,13 +432,7 @@ impl Hierarchy<'_> {
 
     /// The centroid of an element.
     fn element_centre(&self, e: u32) -> V3 {
-        let el = &self.elements[e as usize];
-        let c = el.piece.corners(&self.geo.quads);
-        if self.geo.quads[el.piece.surface].tri {
-            scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0)
-        } else {
-            scale(add(c[0], c[2]), 0.5)
-        }
+        self.elements[e as usize].piece.centre(&self.geo.quads)
     }
 
     /// Calls `f(element, area, centroid, normal)` for each member of a cluster (the root
@@ -1051,11 +1045,11 @@ impl Hierarchy<'_> {
                 let (c, r) = bound.sphere();
                 (c, r, bound)
             } else {
-                let el = &self.elements[id as usize];
-                let q = &self.geo.quads[el.piece.surface];
-                let corners = el.piece.corners(&self.geo.quads);
-                let r = 0.5 * q.diameter() * (el.piece.s[1] - el.piece.s[0]);
-                (self.element_centre(id), r, Bound::of_polygon(&corners, q.n))
+                let piece = &self.elements[id as usize].piece;
+                let (quads, q) = (&self.geo.quads, &self.geo.quads[piece.surface]);
+                let corners = piece.corners(quads);
+                let bound = Bound::of_polygon(&corners, q.n);
+                (piece.centre(quads), piece.radius(quads), bound)
             }
         };
         let mut id = s;
@@ -1097,48 +1091,16 @@ impl Hierarchy<'_> {
         let mut area = self.elements[element as usize].area;
         for _ in 0..TOWARD_LEVELS {
             let corners = piece.corners(&self.geo.quads);
-            let centre = if q.tri {
-                scale(add(add(corners[0], corners[1]), corners[2]), 1.0 / 3.0)
-            } else {
-                scale(add(corners[0], corners[2]), 0.5)
-            };
-            let radius = 0.5 * q.diameter() * (piece.s[1] - piece.s[0]);
-            if norm(sub(centre, x)) >= TOWARD_SPREAD * radius {
+            let radius = piece.radius(&self.geo.quads);
+            if norm(sub(centroid(&corners, q.tri), x)) >= TOWARD_SPREAD * radius {
                 break;
             }
-            let children: [Piece; 4] = std::array::from_fn(|c| {
-                if q.tri {
-                    piece.tri_child(c)
-                } else {
-                    let (ms, mt) = (
-                        0.5 * (piece.s[0] + piece.s[1]),
-                        0.5 * (piece.t[0] + piece.t[1]),
-                    );
-                    Piece {
-                        s: if c % 2 == 0 {
-                            [piece.s[0], ms]
-                        } else {
-                            [ms, piece.s[1]]
-                        },
-                        t: if c / 2 == 0 {
-                            [piece.t[0], mt]
-                        } else {
-                            [mt, piece.t[1]]
-                        },
-                        ..piece
-                    }
-                }
-            });
+            let children: [Piece; 4] = std::array::from_fn(|c| piece.child(q.tri, c));
             // a flat part's cosine at the source is exact: n_S · (x − y) is the same at
             // every one of its points
             let plane = Bound::of_polygon(&corners, q.n);
             let weights = children.map(|child| {
-                let c = child.corners(&self.geo.quads);
-                let centre = if q.tri {
-                    scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0)
-                } else {
-                    scale(add(c[0], c[2]), 0.5)
-                };
+                let centre = child.centre(&self.geo.quads);
                 estimate(centre, 0.5 * radius, 0.25 * area, &plane)
             });
             let sum: f64 = weights.iter().sum();

@@ -235,14 +235,7 @@ impl Hierarchy<'_> {
         for dt in 0..2 {
             for ds in 0..2 {
                 let p = parent.piece;
-                let ms = 0.5 * (p.s[0] + p.s[1]);
-                let mt = 0.5 * (p.t[0] + p.t[1]);
-                let piece = Piece {
-                    upper: false,
-                    surface: p.surface,
-                    s: if ds == 0 { [p.s[0], ms] } else { [ms, p.s[1]] },
-                    t: if dt == 0 { [p.t[0], mt] } else { [mt, p.t[1]] },
-                };
+                let piece = p.child(false, 2 * dt + ds);
                 let mut b = vec![[0.0; 3]; kk];
                 push(self.filters, &parent.b, dt, ds, &mut b);
                 let mut e_coeffs = vec![[0.0; 3]; kk];
