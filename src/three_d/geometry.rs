@@ -384,8 +384,9 @@ impl Piece {
         centroid(&self.corners(quads), quads[self.surface].tri)
     }
 
-    /// The radius of a sphere about its centre that holds it: half its surface's diameter
-    /// scaled by the piece's side in parameters.
+    /// Half its surface's diameter scaled by the piece's side in parameters: the radius of a
+    /// parallelogram piece's sphere about its centre, and about a triangle's (whose vertices
+    /// may lie up to 2/√3 of it from its centroid, an equilateral one's).
     pub(super) fn radius(&self, quads: &[Parallelogram]) -> f64 {
         0.5 * quads[self.surface].diameter() * (self.s[1] - self.s[0])
     }

@@ -1049,7 +1049,7 @@ impl Hierarchy<'_> {
                 let (quads, q) = (&self.geo.quads, &self.geo.quads[piece.surface]);
                 let corners = piece.corners(quads);
                 let bound = Bound::of_polygon(&corners, q.n);
-                (piece.centre(quads), piece.radius(quads), bound)
+                (centroid(&corners, q.tri), piece.radius(quads), bound)
             }
         };
         let mut id = s;
